@@ -1,0 +1,36 @@
+# Every third-party dependency is found here, once, from Debian's packages
+# (scripts/install-deps installs them). Modules link the imported targets.
+find_package(Threads REQUIRED)
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(yaml-cpp REQUIRED)
+find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs calib3d features2d)
+find_package(Ceres 2 REQUIRED)
+# Debian's VTK (pulled in by PCL) refers to MPI::MPI_C; find it first.
+find_package(MPI COMPONENTS C)
+find_package(PCL 1.12 REQUIRED COMPONENTS common io search kdtree sample_consensus segmentation filters features registration)
+find_package(octomap REQUIRED)
+find_package(mrpt-hwdrivers QUIET)
+find_package(mrpt-obs QUIET)
+find_package(mrpt-maps QUIET)
+find_package(mrpt-slam QUIET)
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(ARAVIS IMPORTED_TARGET aravis-0.8)
+pkg_check_modules(LIBUSB IMPORTED_TARGET libusb-1.0)
+find_package(CLI11 QUIET)
+if(RGBDT_BUILD_TESTS)
+  find_package(GTest REQUIRED)
+  include(GoogleTest)
+endif()
+if(RGBDT_BUILD_BENCHMARKS)
+  find_package(benchmark REQUIRED)
+endif()
+
+# PCL exports include directories and definitions as variables; wrap them in one target
+# so modules link a target like every other dependency.
+if(NOT TARGET rgbdt_pcl)
+  add_library(rgbdt_pcl INTERFACE)
+  # Only the PCL libraries we use: ${PCL_LIBRARIES} would also link all of VTK.
+  target_include_directories(rgbdt_pcl SYSTEM INTERFACE ${PCL_INCLUDE_DIRS})
+  target_link_libraries(rgbdt_pcl INTERFACE pcl_common pcl_io pcl_search pcl_kdtree
+    pcl_sample_consensus pcl_segmentation pcl_filters pcl_features pcl_registration)
+endif()

@@ -1,0 +1,107 @@
+# rgbdt_add_module(), rgbdt_add_tests(), rgbdt_add_benchmark(), rgbdt_add_app() and
+# rgbdt_install_package(): one place that sets the standard, warnings, sanitizers,
+# output folders and install rules, so each module's CMakeLists is a few lines.
+include(CMakePackageConfigHelpers)
+
+set_property(GLOBAL PROPERTY RGBDT_INSTALLED_MODULES "")
+
+# Standard, warnings and (optionally) sanitizers for one target.
+function(rgbdt_apply_standard target)
+  target_compile_features(${target} PUBLIC cxx_std_17)
+  set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF POSITION_INDEPENDENT_CODE ON)
+  target_compile_options(${target} PRIVATE
+    $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-unused-parameter>)
+  if(RGBDT_SANITIZE)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
+                                             -fno-sanitize-recover=undefined)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
+endfunction()
+
+# rgbdt_add_module(<name> SOURCES ... [PUBLIC_DEPS ...] [PRIVATE_DEPS ...])
+# Creates library rgbdt_<name>, alias rgbdt::<name>, headers from include/, installed
+# and exported as rgbdt::<name>.
+function(rgbdt_add_module name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS" ${ARGN})
+  set(target rgbdt_${name})
+  add_library(${target} ${ARG_SOURCES})
+  add_library(rgbdt::${name} ALIAS ${target})
+  set_target_properties(${target} PROPERTIES EXPORT_NAME ${name} OUTPUT_NAME rgbdt_${name})
+  target_include_directories(${target} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
+    PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/src)
+  target_link_libraries(${target} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  rgbdt_apply_standard(${target})
+  install(TARGETS ${target} EXPORT rgbdt-${name}-targets
+    ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+  install(DIRECTORY ${CMAKE_CURRENT_SOURCE_DIR}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+  install(EXPORT rgbdt-${name}-targets NAMESPACE rgbdt::
+    DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/rgbdt)
+  set_property(GLOBAL APPEND PROPERTY RGBDT_INSTALLED_MODULES ${name})
+endfunction()
+
+# rgbdt_add_tests(<module> file_test.cpp ... [LIBS ...])
+# One GoogleTest executable per file, named after the file, registered with CTest.
+function(rgbdt_add_tests module)
+  if(NOT RGBDT_BUILD_TESTS)
+    return()
+  endif()
+  cmake_parse_arguments(ARG "" "" "LIBS" ${ARGN})
+  foreach(file IN LISTS ARG_UNPARSED_ARGUMENTS)
+    get_filename_component(test_name ${file} NAME_WE)
+    add_executable(${test_name} ${file})
+    target_link_libraries(${test_name} PRIVATE rgbdt::${module} ${ARG_LIBS} GTest::gtest_main GTest::gmock)
+    target_compile_definitions(${test_name} PRIVATE
+      RGBDT_SHARED_DATA_DIR="${RGBDT_SHARED_DATA_DIR}"
+      RGBDT_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+      RGBDT_BINARY_DIR="${PROJECT_BINARY_DIR}")
+    rgbdt_apply_standard(${test_name})
+    gtest_discover_tests(${test_name} DISCOVERY_TIMEOUT 60
+      PROPERTIES LABELS ${module} ENVIRONMENT "RGBDT_BIN_DIR=${PROJECT_BINARY_DIR}/bin")
+  endforeach()
+endfunction()
+
+# rgbdt_add_benchmark(<name> file.cpp ... LIBS ...): a Google Benchmark program in bin/.
+function(rgbdt_add_benchmark name)
+  if(NOT RGBDT_BUILD_BENCHMARKS)
+    return()
+  endif()
+  cmake_parse_arguments(ARG "" "" "LIBS" ${ARGN})
+  add_executable(${name} ${ARG_UNPARSED_ARGUMENTS})
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS} benchmark::benchmark)
+  target_compile_definitions(${name} PRIVATE RGBDT_SHARED_DATA_DIR="${RGBDT_SHARED_DATA_DIR}")
+  rgbdt_apply_standard(${name})
+endfunction()
+
+# rgbdt_add_app(<name> file.cpp ... LIBS ...): an installed command-line program.
+function(rgbdt_add_app name)
+  cmake_parse_arguments(ARG "" "" "LIBS" ${ARGN})
+  add_executable(${name} ${ARG_UNPARSED_ARGUMENTS})
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS})
+  if(TARGET CLI11::CLI11)
+    target_link_libraries(${name} PRIVATE CLI11::CLI11)
+  endif()
+  rgbdt_apply_standard(${name})
+  install(TARGETS ${name} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endfunction()
+
+# Writes and installs rgbdtConfig.cmake so that other projects can say
+#   find_package(rgbdt REQUIRED COMPONENTS core extrinsics)
+function(rgbdt_install_package)
+  get_property(modules GLOBAL PROPERTY RGBDT_INSTALLED_MODULES)
+  set(RGBDT_ALL_MODULES "${modules}")
+  configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/rgbdtConfig.cmake.in
+    ${PROJECT_BINARY_DIR}/rgbdtConfig.cmake
+    INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/rgbdt)
+  write_basic_package_version_file(${PROJECT_BINARY_DIR}/rgbdtConfigVersion.cmake
+    COMPATIBILITY SameMinorVersion)
+  install(FILES ${PROJECT_BINARY_DIR}/rgbdtConfig.cmake ${PROJECT_BINARY_DIR}/rgbdtConfigVersion.cmake
+    DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/rgbdt)
+  if(TARGET rgbdt_pcl)
+    install(TARGETS rgbdt_pcl EXPORT rgbdt-pcl-targets)
+    install(EXPORT rgbdt-pcl-targets DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/rgbdt)
+  endif()
+endfunction()

@@ -1,0 +1,31 @@
+#pragma once
+/// \file
+/// Reading and writing PCD files (ASCII, binary, binary_compressed) through PCL, with
+/// errors that name the file and what was expected. Files may carry any subset of the
+/// optional fields; which ones were present is reported so callers can recover the rest
+/// (e.g. scan lines from geometry when `ring` is absent).
+#include <string>
+
+#include "rgbdt/cloud/point_types.hpp"
+
+namespace rgbdt::cloud {
+
+struct LoadedCloud {
+  Cloud::Ptr cloud;
+  bool has_intensity = false;
+  bool has_ring = false;
+  bool has_t = false;
+};
+
+/// Loads a PCD. Requires fields x y z; intensity (or "i"), ring and t (or "time",
+/// "timestamp") are optional and zero when absent. Points with non-finite coordinates are
+/// dropped (PCL writes NaN for missing returns in organised clouds). Throws
+/// rgbdt::core::Error naming the file when it is missing, unreadable or lacks x y z.
+LoadedCloud load_pcd(const std::string& path);
+
+enum class PcdFormat { kAscii, kBinary, kBinaryCompressed };
+
+/// Writes all fields of the cloud. Throws rgbdt::core::Error naming the file on failure.
+void save_pcd(const std::string& path, const Cloud& cloud, PcdFormat format = PcdFormat::kBinary);
+
+}  // namespace rgbdt::cloud

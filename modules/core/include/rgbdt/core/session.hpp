@@ -1,0 +1,76 @@
+#pragma once
+/// \file
+/// The session.yaml files of design.md: calibration sessions and mapping sessions.
+/// Readers resolve every relative path against the folder that holds session.yaml, so the
+/// structs carry absolute paths; writers store paths relative to that folder when they lie
+/// below it.
+#include <Eigen/Core>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rgbdt::core {
+
+/// The calibration target.
+///   target: {type: circle_hole, radius: 0.30}
+///   target: {type: circle_hole, radius: 0.12, board_size: [1.0, 0.8],
+///            holes: [[-0.25, 0.2], [0.25, 0.2], [-0.25, -0.2], [0.25, -0.2]]}
+/// `holes` are hole centres in the board's own frame [m] (x right, y up, origin at the
+/// board centre); absent means one hole at the origin.
+struct TargetSpec {
+  std::string type = "circle_hole";
+  double radius_m = 0.0;
+  std::optional<Eigen::Vector2d> board_size_m;
+  std::vector<Eigen::Vector2d> holes_m;
+};
+
+/// How a thermal camera's counts map to temperature, e.g.
+///   radiometry: {type: linear, kelvin_per_count: 0.04, offset_k: 0.0}
+/// Parameters are kept by name; the thermal_camera module interprets them.
+struct RadiometrySpec {
+  std::string type = "linear";
+  std::map<std::string, double> parameters;
+};
+
+struct CameraEntry {
+  std::string intrinsics;  ///< absolute path of the camera_info YAML
+  std::string frames;      ///< absolute path of the frame index CSV (mapping sessions)
+  std::optional<RadiometrySpec> radiometry;
+};
+
+struct CalibrationView {
+  std::string cloud;                          ///< absolute path of the PCD
+  std::map<std::string, std::string> images;  ///< camera name -> absolute PNG path
+  std::map<std::string, Eigen::Vector2d> image_seeds;  ///< camera -> seed pixel (optional)
+  std::optional<Eigen::Vector3d> lidar_seed;           ///< seed point [m], LIDAR frame
+};
+
+struct CalibrationSession {
+  std::string directory;  ///< absolute folder of session.yaml
+  TargetSpec target;
+  std::map<std::string, CameraEntry> cameras;
+  std::vector<CalibrationView> views;
+};
+
+struct LidarStream {
+  std::string rawlog;  ///< absolute path of an MRPT rawlog, or empty
+  std::string clouds;  ///< absolute path of a CSV index of assembled clouds, or empty
+};
+
+struct MappingSession {
+  std::string directory;
+  LidarStream lidar;
+  std::map<std::string, CameraEntry> cameras;
+  std::string trajectory;  ///< optional CSV of the cart trajectory (absolute), or empty
+};
+
+/// Reads a calibration session from a session.yaml file or the folder that holds it.
+/// Throws rgbdt::core::Error naming the file, the key and what was expected.
+CalibrationSession read_calibration_session(const std::string& path);
+void write_calibration_session(const std::string& yaml_path, const CalibrationSession& session);
+
+MappingSession read_mapping_session(const std::string& path);
+void write_mapping_session(const std::string& yaml_path, const MappingSession& session);
+
+}  // namespace rgbdt::core

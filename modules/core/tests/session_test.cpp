@@ -1,0 +1,137 @@
+#include <gtest/gtest.h>
+
+#include "rgbdt/core/error.hpp"
+#include "rgbdt/core/session.hpp"
+#include "test_util.hpp"
+
+using namespace rgbdt::core;
+using rgbdt::test::expect_error_mentions;
+using rgbdt::test::write_text;
+
+namespace {
+const char* kCalibration = R"(target: {type: circle_hole, radius: 0.30}
+cameras:
+  rgb:     {intrinsics: rgb.yaml}
+  thermal: {intrinsics: thermal.yaml}
+views:
+  - cloud: clouds/000.pcd
+    images: {rgb: rgb/000.png, thermal: thermal/000.png}
+    seeds: {rgb: [640, 480], lidar: [4.0, 0.2, 0.1]}
+  - cloud: clouds/001.pcd
+    images: {rgb: rgb/001.png}
+)";
+
+const char* kMapping = R"(lidar:   {rawlog: lidar.rawlog}
+cameras:
+  rgb:     {intrinsics: rgb.yaml,     frames: rgb/index.csv}
+  thermal: {intrinsics: thermal.yaml, frames: thermal/index.csv,
+            radiometry: {type: linear, kelvin_per_count: 0.04, offset_k: 0.0}}
+)";
+}  // namespace
+
+TEST(Session, ReadsCalibrationSessionWithResolvedPaths) {
+  const auto dir = rgbdt::test::temp_dir("calib");
+  write_text(dir / "session.yaml", kCalibration);
+  const CalibrationSession s = read_calibration_session(dir.string());
+  EXPECT_EQ(s.directory, dir.string());
+  EXPECT_EQ(s.target.type, "circle_hole");
+  EXPECT_DOUBLE_EQ(s.target.radius_m, 0.30);
+  ASSERT_EQ(s.cameras.size(), 2u);
+  EXPECT_EQ(s.cameras.at("rgb").intrinsics, (dir / "rgb.yaml").string());
+  ASSERT_EQ(s.views.size(), 2u);
+  EXPECT_EQ(s.views[0].cloud, (dir / "clouds/000.pcd").string());
+  EXPECT_EQ(s.views[0].images.at("thermal"), (dir / "thermal/000.png").string());
+  ASSERT_TRUE(s.views[0].lidar_seed.has_value());
+  EXPECT_TRUE(s.views[0].lidar_seed->isApprox(Eigen::Vector3d(4.0, 0.2, 0.1)));
+  EXPECT_TRUE(s.views[0].image_seeds.at("rgb").isApprox(Eigen::Vector2d(640, 480)));
+  EXPECT_FALSE(s.views[1].lidar_seed.has_value());
+  EXPECT_EQ(s.views[1].images.count("thermal"), 0u);
+  // The yaml file itself is accepted as well as its folder.
+  EXPECT_EQ(read_calibration_session((dir / "session.yaml").string()).views.size(), 2u);
+}
+
+TEST(Session, CalibrationWriteThenReadRoundTrips) {
+  const auto dir = rgbdt::test::temp_dir("calib");
+  write_text(dir / "in/session.yaml", kCalibration);
+  CalibrationSession s = read_calibration_session((dir / "in").string());
+  s.target.board_size_m = Eigen::Vector2d(1.2, 0.9);
+  s.target.holes_m = {{-0.2, 0.1}, {0.2, 0.1}};
+  write_calibration_session((dir / "in/copy.yaml").string(), s);
+  // Paths under the folder are written relative: the copy reads back identically.
+  std::filesystem::rename(dir / "in/copy.yaml", dir / "in/session.yaml");
+  const CalibrationSession r = read_calibration_session((dir / "in").string());
+  EXPECT_EQ(r.views.size(), s.views.size());
+  EXPECT_EQ(r.views[0].cloud, s.views[0].cloud);
+  EXPECT_EQ(r.views[0].images, s.views[0].images);
+  EXPECT_TRUE(r.views[0].lidar_seed->isApprox(*s.views[0].lidar_seed));
+  EXPECT_EQ(r.cameras.at("thermal").intrinsics, s.cameras.at("thermal").intrinsics);
+  ASSERT_TRUE(r.target.board_size_m.has_value());
+  EXPECT_TRUE(r.target.board_size_m->isApprox(Eigen::Vector2d(1.2, 0.9)));
+  ASSERT_EQ(r.target.holes_m.size(), 2u);
+  EXPECT_TRUE(r.target.holes_m[1].isApprox(Eigen::Vector2d(0.2, 0.1)));
+}
+
+TEST(Session, ReadsMappingSessionWithRadiometry) {
+  const auto dir = rgbdt::test::temp_dir("map");
+  write_text(dir / "session.yaml", kMapping);
+  const MappingSession s = read_mapping_session(dir.string());
+  EXPECT_EQ(s.lidar.rawlog, (dir / "lidar.rawlog").string());
+  EXPECT_TRUE(s.lidar.clouds.empty());
+  EXPECT_EQ(s.cameras.at("rgb").frames, (dir / "rgb/index.csv").string());
+  ASSERT_TRUE(s.cameras.at("thermal").radiometry.has_value());
+  EXPECT_EQ(s.cameras.at("thermal").radiometry->type, "linear");
+  EXPECT_DOUBLE_EQ(s.cameras.at("thermal").radiometry->parameters.at("kelvin_per_count"), 0.04);
+  EXPECT_FALSE(s.cameras.at("rgb").radiometry.has_value());
+}
+
+TEST(Session, MappingWriteThenReadRoundTrips) {
+  const auto dir = rgbdt::test::temp_dir("map");
+  MappingSession s;
+  s.directory = dir.string();
+  s.lidar.clouds = (dir / "clouds/index.csv").string();
+  s.cameras["rgb"] = {(dir / "rgb.yaml").string(), (dir / "rgb/index.csv").string(), std::nullopt};
+  RadiometrySpec r{"linear", {{"kelvin_per_count", 0.04}, {"offset_k", 1.5}}};
+  s.cameras["thermal"] = {(dir / "thermal.yaml").string(), (dir / "thermal/index.csv").string(), r};
+  s.trajectory = (dir / "ground_truth/trajectory.csv").string();
+  write_mapping_session((dir / "session.yaml").string(), s);
+  const MappingSession back = read_mapping_session(dir.string());
+  EXPECT_EQ(back.lidar.clouds, s.lidar.clouds);
+  EXPECT_EQ(back.cameras.at("thermal").frames, s.cameras.at("thermal").frames);
+  EXPECT_DOUBLE_EQ(back.cameras.at("thermal").radiometry->parameters.at("offset_k"), 1.5);
+  EXPECT_EQ(back.trajectory, s.trajectory);
+}
+
+TEST(Session, MissingSessionFileIsReported) {
+  const auto dir = rgbdt::test::temp_dir("none");
+  expect_error_mentions<Error>([&] { read_calibration_session(dir.string()); }, {"session.yaml"});
+}
+
+TEST(Session, BadInputNamesFileKeyAndExpectation) {
+  const auto dir = rgbdt::test::temp_dir("bad");
+  auto expect = [&](const std::string& text, std::initializer_list<std::string> parts) {
+    write_text(dir / "session.yaml", text);
+    expect_error_mentions<Error>([&] { read_calibration_session(dir.string()); }, parts);
+  };
+  expect("cameras: {rgb: {intrinsics: a.yaml}}\nviews: [{cloud: a.pcd, images: {rgb: a.png}}]\n",
+         {"session.yaml", "target"});
+  expect("target: {type: circle_hole, radius: -1}\ncameras: {rgb: {intrinsics: a.yaml}}\nviews: [{cloud: a.pcd, images: {rgb: a.png}}]\n",
+         {"session.yaml", "radius", "positive"});
+  expect("target: {type: square, radius: 1}\ncameras: {rgb: {intrinsics: a.yaml}}\nviews: [{cloud: a.pcd, images: {rgb: a.png}}]\n",
+         {"square", "circle_hole"});
+  expect("target: {type: circle_hole, radius: 0.3}\ncameras: {rgb: {intrinsics: a.yaml}}\nviews: [{cloud: a.pcd, images: {ir: a.png}}]\n",
+         {"views[0]", "'ir'"});
+  expect("target: {type: circle_hole, radius: 0.3}\ncameras: {rgb: {intrinsics: a.yaml}}\nviews: [{cloud: a.pcd, images: {rgb: a.png}, seeds: {lidar: [1, 2]}}]\n",
+         {"views[0].seeds", "lidar", "3 numbers"});
+  expect("target: {type: circle_hole, radius: 0.3}\ncameras: {rgb: {intrinsics: a.yaml}}\nviews: []\n",
+         {"views", "non-empty"});
+  expect("target: {type: circle_hole, radius: 0.3}\ncameras: {rgb: {}}\nviews: [{cloud: a.pcd, images: {rgb: a.png}}]\n",
+         {"cameras.rgb", "intrinsics"});
+}
+
+TEST(Session, MappingSessionNeedsALidarStream) {
+  const auto dir = rgbdt::test::temp_dir("bad");
+  write_text(dir / "session.yaml", "lidar: {}\ncameras: {rgb: {intrinsics: a.yaml, frames: f.csv}}\n");
+  expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); }, {"lidar", "rawlog", "clouds"});
+  write_text(dir / "session.yaml", "lidar: {rawlog: a.rawlog}\ncameras: {rgb: {intrinsics: a.yaml}}\n");
+  expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); }, {"cameras.rgb", "frames"});
+}
