@@ -228,6 +228,7 @@ MappingSession read_mapping_session(const std::string& path) {
                                        "{rawlog: file.rawlog} or {clouds: clouds/index.csv}");
   if (lidar["rawlog"]) s.lidar.rawlog = path_key(lidar, "rawlog", w, "lidar");
   if (lidar["clouds"]) s.lidar.clouds = path_key(lidar, "clouds", w, "lidar");
+  if (lidar["rig"]) s.lidar.rig = path_key(lidar, "rig", w, "lidar");
   if (s.lidar.rawlog.empty() && s.lidar.clouds.empty()) {
     throw Error(w.yaml_path, "key 'lidar' has neither 'rawlog' nor 'clouds' (expected one)");
   }
@@ -244,6 +245,7 @@ void write_mapping_session(const std::string& yaml_path, const MappingSession& s
   out << YAML::Key << "lidar" << YAML::Value << YAML::Flow << YAML::BeginMap;
   if (!s.lidar.rawlog.empty()) out << YAML::Key << "rawlog" << YAML::Value << relative_to(dir, s.lidar.rawlog);
   if (!s.lidar.clouds.empty()) out << YAML::Key << "clouds" << YAML::Value << relative_to(dir, s.lidar.clouds);
+  if (!s.lidar.rig.empty()) out << YAML::Key << "rig" << YAML::Value << relative_to(dir, s.lidar.rig);
   out << YAML::EndMap;
   emit_cameras(out, s.cameras, dir, true);
   if (!s.trajectory.empty()) out << YAML::Key << "trajectory" << YAML::Value << relative_to(dir, s.trajectory);

@@ -89,6 +89,7 @@ TEST(Session, MappingWriteThenReadRoundTrips) {
   MappingSession s;
   s.directory = dir.string();
   s.lidar.clouds = (dir / "clouds/index.csv").string();
+  s.lidar.rig = (dir / "tilt_rig.yaml").string();
   s.cameras["rgb"] = {(dir / "rgb.yaml").string(), (dir / "rgb/index.csv").string(), std::nullopt};
   RadiometrySpec r{"linear", {{"kelvin_per_count", 0.04}, {"offset_k", 1.5}}};
   s.cameras["thermal"] = {(dir / "thermal.yaml").string(), (dir / "thermal/index.csv").string(), r};
@@ -96,6 +97,7 @@ TEST(Session, MappingWriteThenReadRoundTrips) {
   write_mapping_session((dir / "session.yaml").string(), s);
   const MappingSession back = read_mapping_session(dir.string());
   EXPECT_EQ(back.lidar.clouds, s.lidar.clouds);
+  EXPECT_EQ(back.lidar.rig, s.lidar.rig);
   EXPECT_EQ(back.cameras.at("thermal").frames, s.cameras.at("thermal").frames);
   EXPECT_DOUBLE_EQ(back.cameras.at("thermal").radiometry->parameters.at("offset_k"), 1.5);
   EXPECT_EQ(back.trajectory, s.trajectory);

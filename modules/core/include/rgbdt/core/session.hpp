@@ -56,6 +56,7 @@ struct CalibrationSession {
 struct LidarStream {
   std::string rawlog;  ///< absolute path of an MRPT rawlog, or empty
   std::string clouds;  ///< absolute path of a CSV index of assembled clouds, or empty
+  std::string rig;     ///< absolute path of tilt_rig.yaml (rgbdt/core/tilt_rig.hpp), or empty
 };
 
 struct MappingSession {
