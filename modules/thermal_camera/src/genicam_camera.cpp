@@ -2,7 +2,13 @@
 
 #include <arv.h>
 
+#include <arpa/inet.h>
+#include <ifaddrs.h>
+#include <netinet/in.h>
+
+#include <algorithm>
 #include <atomic>
+#include <cstring>
 #include <deque>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
@@ -57,9 +63,75 @@ int cv_type_for(ArvPixelFormat format) {
   }
 }
 
+// Local IPv4 interface whose subnet holds `device` (127.0.0.1 for loopback devices), so a
+// GigE camera given by address is opened without broadcast discovery.
+GInetAddress* interface_for(GInetAddress* device, std::string* why) {
+  const auto* device_bytes = g_inet_address_to_bytes(device);
+  uint32_t d = 0;
+  std::memcpy(&d, device_bytes, 4);
+  ifaddrs* list = nullptr;
+  if (getifaddrs(&list) != 0) {
+    *why = "cannot list the network interfaces";
+    return nullptr;
+  }
+  GInetAddress* found = nullptr;
+  for (ifaddrs* it = list; it != nullptr && found == nullptr; it = it->ifa_next) {
+    if (it->ifa_addr == nullptr || it->ifa_netmask == nullptr || it->ifa_addr->sa_family != AF_INET) continue;
+    const uint32_t a = reinterpret_cast<sockaddr_in*>(it->ifa_addr)->sin_addr.s_addr;
+    const uint32_t m = reinterpret_cast<sockaddr_in*>(it->ifa_netmask)->sin_addr.s_addr;
+    if ((a & m) == (d & m)) {
+      found = g_inet_address_new_from_bytes(reinterpret_cast<const guint8*>(&a), G_SOCKET_FAMILY_IPV4);
+    }
+  }
+  freeifaddrs(list);
+  if (found == nullptr) *why = "no local IPv4 interface on the subnet of this address";
+  return found;
+}
+
+// Opens a GigE camera by IPv4 address (nullptr when `id` is not an address).
+ArvCamera* open_by_address(const std::string& id, GError** error, std::string* why) {
+  GInetAddress* device = g_inet_address_new_from_string(id.c_str());
+  if (device == nullptr) return nullptr;
+  if (g_inet_address_get_family(device) != G_SOCKET_FAMILY_IPV4) {
+    g_object_unref(device);
+    *why = "only IPv4 addresses are supported by GigE Vision";
+    return nullptr;
+  }
+  GInetAddress* iface = interface_for(device, why);
+  ArvCamera* camera = nullptr;
+  if (iface != nullptr) {
+    ArvDevice* arv_device = arv_gv_device_new(iface, device, error);
+    if (arv_device != nullptr) {
+      camera = arv_camera_new_with_device(arv_device, error);
+      g_object_unref(arv_device);  // the camera holds its own reference
+    }
+    g_object_unref(iface);
+  }
+  g_object_unref(device);
+  return camera;
+}
+
+bool is_ipv4_address(const std::string& id) {
+  GInetAddress* a = g_inet_address_new_from_string(id.c_str());
+  if (a == nullptr) return false;
+  g_object_unref(a);
+  return true;
+}
+
 }  // namespace
 
-void enable_fake_interface() { arv_enable_interface("Fake"); }
+void select_interfaces(const InterfaceSelection& selection) {
+  const auto set = [](const char* name, bool on) {
+    if (on) {
+      arv_enable_interface(name);
+    } else {
+      arv_disable_interface(name);
+    }
+  };
+  set("GigEVision", selection.gige);
+  set("USB3Vision", selection.usb3);
+  set("Fake", selection.fake);
+}
 
 std::vector<DeviceInfo> list_devices() {
   arv_update_device_list();
@@ -139,8 +211,15 @@ struct GenicamCamera::Impl {
   uint64_t underruns_seen = 0;
   StreamStatistics stats;
   std::deque<Clock::time_point> recent;  // reception times of the last second's frames
+  // Releasing a GigE device that has gone away waits for Aravis's protocol timeouts
+  // (several seconds); it is done here so that grab() keeps reporting promptly.
+  std::thread releaser;
+  std::atomic<bool> releasing{false};
 
-  ~Impl() { close(false); }
+  ~Impl() {
+    close(true);
+    if (releaser.joinable()) releaser.join();
+  }
 
   static void on_control_lost(ArvDevice*, gpointer self) {
     // Called from Aravis's heartbeat thread: only flag it, grab() acts on it.
@@ -153,11 +232,21 @@ struct GenicamCamera::Impl {
 
   void open() {
     GError* error = nullptr;
-    camera = arv_camera_new(device_id.c_str(), &error);
-    if (camera == nullptr) {
-      throw core::Error("camera '" + device_id + "'",
-                        "cannot open: " + take_message(error) +
-                            " (run `rgbdt_camera list` to see the available ids)");
+    std::string why;
+    if (is_ipv4_address(device_id)) {
+      camera = open_by_address(device_id, &error, &why);
+      if (camera == nullptr) {
+        throw core::Error("camera '" + device_id + "'",
+                          "cannot open the GigE camera at this address: " +
+                              (why.empty() ? take_message(error) : why));
+      }
+    } else {
+      camera = arv_camera_new(device_id.c_str(), &error);
+      if (camera == nullptr) {
+        throw core::Error("camera '" + device_id + "'",
+                          "cannot open: " + take_message(error) +
+                              " (run `rgbdt_camera list` to see the available ids)");
+      }
     }
     control_lost.store(false);
     control_lost_handler = g_signal_connect(arv_camera_get_device(camera), "control-lost",
@@ -252,6 +341,26 @@ struct GenicamCamera::Impl {
     connected = false;
   }
 
+  // Hands the dead stream and device to a background thread (see `releaser`).
+  void release_in_background() {
+    if (releaser.joinable()) releaser.join();
+    if (camera != nullptr && control_lost_handler != 0) {
+      g_signal_handler_disconnect(arv_camera_get_device(camera), control_lost_handler);
+      control_lost_handler = 0;
+    }
+    ArvStream* dead_stream = stream;
+    ArvCamera* dead_camera = camera;
+    stream = nullptr;
+    camera = nullptr;
+    connected = false;
+    releasing.store(true);
+    releaser = std::thread([this, dead_stream, dead_camera] {
+      if (dead_stream != nullptr) g_object_unref(dead_stream);
+      if (dead_camera != nullptr) g_object_unref(dead_camera);
+      releasing.store(false);
+    });
+  }
+
   // True when the device answers a read of its first bootstrap register, which bypasses
   // the GenICam node cache.
   bool device_answers() {
@@ -270,7 +379,7 @@ struct GenicamCamera::Impl {
     ++stats.disconnects;
     lost_reason = why;
     core::log_warning("camera '", device_id, "' lost: ", why, "; reconnecting");
-    close(false);
+    release_in_background();
     reconnect_attempts = 0;
     last_reconnect_attempt = Clock::now();
     GrabResult r;
@@ -280,12 +389,21 @@ struct GenicamCamera::Impl {
   }
 
   GrabResult try_reconnect() {
+    GrabResult r;
+    if (releasing.load()) {
+      // Reopening now could let the old handle's late "release control" reach the
+      // device after the new one has taken control.
+      std::this_thread::sleep_for(std::chrono::milliseconds(std::min(options.timeout_ms, 200)));
+      r.status = GrabStatus::kDisconnected;
+      r.message = "device '" + device_id + "' lost (" + lost_reason +
+                  "); releasing the old connection before reconnecting";
+      return r;
+    }
     const auto interval = std::chrono::milliseconds(options.reconnect_interval_ms);
     const auto wait = last_reconnect_attempt + interval - Clock::now();
     if (wait > Clock::duration::zero()) std::this_thread::sleep_for(wait);
     last_reconnect_attempt = Clock::now();
     ++reconnect_attempts;
-    GrabResult r;
     try {
       open();
       if (want_streaming) start_stream();

@@ -15,7 +15,8 @@ constexpr const char* kFakeId = "Fake_1";
 
 class GenicamFake : public ::testing::Test {
  protected:
-  void SetUp() override { enable_fake_interface(); }
+  // Only the in-process fake: no GigE broadcast discovery leaves this test.
+  void SetUp() override { select_interfaces({/*gige=*/false, /*usb3=*/false, /*fake=*/true}); }
 };
 
 // Grabs until `n` frames arrived or `max_calls` grab() calls were made.

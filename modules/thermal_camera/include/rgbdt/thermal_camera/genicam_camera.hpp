@@ -28,11 +28,18 @@ struct DeviceInfo {
   std::string address;      ///< IP address for GigE, empty otherwise
 };
 
-/// Makes Aravis's in-process fake camera ("Fake_1") visible to list_devices() and
-/// GenicamCamera. Used by tests and by `rgbdt_camera --fake`; harmless to call twice.
-void enable_fake_interface();
+/// Which Aravis transport interfaces list_devices() and GenicamCamera search. Process-wide
+/// (Aravis keeps one registry). GigE discovery broadcasts on every IPv4 interface; turn
+/// it off to keep a process off the network (a GigE camera given by its IP address is
+/// still reachable, see GenicamCamera).
+struct InterfaceSelection {
+  bool gige = true;   ///< GigE Vision (broadcast discovery)
+  bool usb3 = true;   ///< USB3 Vision
+  bool fake = false;  ///< Aravis's in-process fake camera, id "Fake_1" (tests, demos)
+};
+void select_interfaces(const InterfaceSelection& selection);
 
-/// Cameras Aravis can see now (re-enumerates; GigE discovery takes up to ~1 s).
+/// Cameras Aravis can see now on the selected interfaces (GigE discovery takes ~1 s).
 std::vector<DeviceInfo> list_devices();
 
 /// Region of interest on the sensor [px]; width/height 0 mean "up to the sensor edge".
@@ -102,7 +109,10 @@ struct StreamStatistics {
 
 class GenicamCamera {
  public:
-  /// Opens the device and applies the options. Throws std::invalid_argument for invalid
+  /// Opens the device and applies the options. `device_id` is an Aravis id as listed by
+  /// list_devices() ("Fake_1", "<vendor>-<serial>", a MAC address) or the IPv4 address
+  /// of a GigE camera: an address is opened directly from the local interface on its
+  /// subnet, without broadcast discovery (and 127.0.0.1 keeps all traffic on loopback). Throws std::invalid_argument for invalid
   /// options and rgbdt::core::Error (naming the device and the feature) when the device
   /// cannot be opened or refuses a setting.
   explicit GenicamCamera(const std::string& device_id, const GenicamOptions& options = {});
