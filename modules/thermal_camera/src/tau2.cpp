@@ -1,6 +1,13 @@
 #include "rgbdt/thermal_camera/tau2.hpp"
 
+#include <poll.h>
+#include <pty.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <stdexcept>
 #include <thread>
 
@@ -302,6 +309,50 @@ Packet Tau2Emulator::handle(const Packet& command) {
     }
   }
   return error(Status::kUndefinedFunctionError);
+}
+
+// ------------------------------------------------------------------------ pty emulator
+
+Tau2PtyEmulator::Tau2PtyEmulator() {
+  char name[256] = {0};
+  if (::openpty(&master_fd_, &slave_fd_, name, nullptr, nullptr) != 0) {
+    throw core::Error("openpty", std::string("cannot create a pseudo-terminal: ") + std::strerror(errno));
+  }
+  path_ = name;
+  // Raw mode on both sides: no echo, no CR/LF translation of binary packets.
+  termios tio{};
+  ::tcgetattr(slave_fd_, &tio);
+  ::cfmakeraw(&tio);
+  ::tcsetattr(slave_fd_, TCSANOW, &tio);
+  thread_ = std::thread([this] { serve(); });
+}
+
+Tau2PtyEmulator::~Tau2PtyEmulator() {
+  stop_.store(true);
+  if (thread_.joinable()) thread_.join();
+  ::close(slave_fd_);
+  ::close(master_fd_);
+}
+
+void Tau2PtyEmulator::serve() {
+  uint8_t buf[512];
+  while (!stop_.load()) {
+    pollfd p{master_fd_, POLLIN, 0};
+    if (::poll(&p, 1, 20) <= 0) continue;
+    const ssize_t n = ::read(master_fd_, buf, sizeof buf);
+    if (n <= 0) continue;
+    std::vector<uint8_t> reply;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      reply = emulator_.feed(buf, static_cast<size_t>(n));
+    }
+    size_t done = 0;
+    while (done < reply.size()) {
+      const ssize_t w = ::write(master_fd_, reply.data() + done, reply.size() - done);
+      if (w <= 0) break;
+      done += static_cast<size_t>(w);
+    }
+  }
 }
 
 }  // namespace rgbdt::thermal_camera

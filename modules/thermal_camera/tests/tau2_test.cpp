@@ -1,14 +1,6 @@
 // The Tau2 client against the emulated camera on a pseudo-terminal: real termios I/O,
 // real byte timing, no hardware.
 #include <gtest/gtest.h>
-#include <poll.h>
-#include <pty.h>
-#include <termios.h>
-#include <unistd.h>
-
-#include <atomic>
-#include <mutex>
-#include <thread>
 
 #include "rgbdt/thermal_camera/radiometry.hpp"
 #include "rgbdt/thermal_camera/tau2.hpp"
@@ -18,61 +10,7 @@ using tau2::Status;
 
 namespace {
 
-/// A Tau2Emulator answering on the master side of a pty; the client opens the slave.
-class PtyTau2 {
- public:
-  PtyTau2() {
-    char name[256] = {0};
-    if (::openpty(&master_, &slave_, name, nullptr, nullptr) != 0) {
-      ADD_FAILURE() << "openpty failed";
-      return;
-    }
-    slave_name_ = name;
-    termios tio{};
-    ::tcgetattr(slave_, &tio);
-    ::cfmakeraw(&tio);
-    ::tcsetattr(slave_, TCSANOW, &tio);
-    thread_ = std::thread([this] { run(); });
-  }
-  ~PtyTau2() {
-    stop_ = true;
-    if (thread_.joinable()) thread_.join();
-    if (slave_ >= 0) ::close(slave_);
-    if (master_ >= 0) ::close(master_);
-  }
-
-  const std::string& path() const { return slave_name_; }
-
-  template <typename Fn>
-  auto with_emulator(Fn&& fn) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return fn(emulator_);
-  }
-
- private:
-  void run() {
-    uint8_t buf[512];
-    while (!stop_) {
-      pollfd p{master_, POLLIN, 0};
-      if (::poll(&p, 1, 20) <= 0) continue;
-      const ssize_t n = ::read(master_, buf, sizeof buf);
-      if (n <= 0) continue;
-      std::vector<uint8_t> reply;
-      {
-        std::lock_guard<std::mutex> lock(mutex_);
-        reply = emulator_.feed(buf, static_cast<size_t>(n));
-      }
-      if (!reply.empty() && ::write(master_, reply.data(), reply.size()) < 0) return;
-    }
-  }
-
-  int master_ = -1, slave_ = -1;
-  std::string slave_name_;
-  std::mutex mutex_;
-  Tau2Emulator emulator_;
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
-};
+using PtyTau2 = Tau2PtyEmulator;
 
 Tau2 connect(const PtyTau2& pty, int timeout_ms = 500) {
   Tau2Options o;

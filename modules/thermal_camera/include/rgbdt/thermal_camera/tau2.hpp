@@ -4,8 +4,11 @@
 /// tau2_protocol.hpp; function codes and scalings from the FLIR Tau 2 / Quark 2 Software
 /// IDD, 102-PS242-43). Video is separate: 14-bit LVDS/CMOS through a frame grabber, or a
 /// UVC Y16 stream on USB accessory boards (see the module README).
+#include <atomic>
 #include <cstdint>
 #include <memory>
+#include <mutex>
+#include <thread>
 #include <string>
 #include <vector>
 
@@ -120,6 +123,40 @@ class Tau2Emulator {
   State state_;
   std::vector<uint8_t> pending_;
   Fault fault_ = Fault::kNone;
+};
+
+/// A Tau2Emulator served on a pseudo-terminal by a background thread: open path() with
+/// TermiosTransport (or any serial tool) as if it were the camera's port. For tests and
+/// for developing against a "camera" without hardware (`rgbdt_camera tau2-emulate`).
+class Tau2PtyEmulator {
+ public:
+  /// Opens the pty and starts serving. Throws rgbdt::core::Error if no pty is available.
+  Tau2PtyEmulator();
+  ~Tau2PtyEmulator();
+  Tau2PtyEmulator(const Tau2PtyEmulator&) = delete;
+  Tau2PtyEmulator& operator=(const Tau2PtyEmulator&) = delete;
+
+  /// The slave side, e.g. "/dev/pts/7".
+  const std::string& path() const { return path_; }
+
+  /// Runs fn(Tau2Emulator&) under the emulator's lock (to read or change its state or
+  /// inject a fault while it serves) and returns what fn returns.
+  template <typename Fn>
+  auto with_emulator(Fn&& fn) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return fn(emulator_);
+  }
+
+ private:
+  void serve();
+
+  int master_fd_ = -1;
+  int slave_fd_ = -1;  // kept open so the pty survives clients closing it
+  std::string path_;
+  std::mutex mutex_;
+  Tau2Emulator emulator_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
 };
 
 }  // namespace rgbdt::thermal_camera
