@@ -72,7 +72,7 @@ std::vector<uint8_t> encode(const Packet& packet) {
                                 " bytes, expected at most " + std::to_string(kMaxPayloadBytes));
   }
   const auto n = static_cast<uint16_t>(packet.payload.size());
-  std::vector<uint8_t> out = {kProcessCode, packet.status, 0x00, packet.function,
+  std::vector<uint8_t> out = {kProcessCode, packet.status, packet.reserved, packet.function,
                               static_cast<uint8_t>(n >> 8), static_cast<uint8_t>(n & 0xFF)};
   const uint16_t crc1 = crc16_ccitt(out.data(), 6);
   out.push_back(static_cast<uint8_t>(crc1 >> 8));
@@ -123,6 +123,7 @@ ParseResult parse(const uint8_t* data, size_t size) {
   r.kind = ParseResult::Kind::kPacket;
   r.consumed = total;
   r.packet.status = data[1];
+  r.packet.reserved = data[2];
   r.packet.function = data[3];
   r.packet.payload.assign(data + kHeaderBytes, data + kHeaderBytes + count);
   return r;

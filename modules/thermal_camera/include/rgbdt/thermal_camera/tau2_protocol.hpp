@@ -80,6 +80,9 @@ struct Packet {
   uint8_t status = 0;      ///< Status for replies; 0 for commands
   uint8_t function = 0;    ///< Function code
   std::vector<uint8_t> payload;
+  /// Byte 2. Sent as 0; kept as received because it is covered by the header CRC, so that
+  /// encode(parse(bytes)) reproduces the bytes exactly (found by fuzzing).
+  uint8_t reserved = 0;
 };
 
 /// The bytes of a packet with both CRCs. Throws std::invalid_argument when the payload
