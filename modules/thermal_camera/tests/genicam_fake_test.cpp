@@ -43,7 +43,9 @@ TEST_F(GenicamFake, Streams200FramesWithNoneLost) {
   GenicamOptions options;
   options.pixel_format = "Mono8";
   options.frame_rate_hz = 100.0;  // 2 s for 200 frames
-  options.buffer_count = 8;
+  // 32 buffers = 320 ms of slack: the pool must absorb the scheduling stalls of a loaded
+  // CI host (ASan, 2 cores) so that a lost frame means a driver fault, not a slow test.
+  options.buffer_count = 32;
   GenicamCamera camera(kFakeId, options);
   camera.start();
   const auto frames = grab_frames(camera, 200, 400);
@@ -65,10 +67,18 @@ TEST_F(GenicamFake, Streams200FramesWithNoneLost) {
   }
   EXPECT_EQ(frames[0].image.type(), CV_8UC1);
   EXPECT_EQ(frames[0].pixel_format, "Mono8");
-  // 200 frames at 100 Hz: host-side rate within 30 % (scheduling on a shared 2-core box).
-  EXPECT_NEAR(stats.frame_rate_hz, 100.0, 30.0);
-  const double span_s = (frames.back().device_timestamp_ns - frames.front().device_timestamp_ns) * 1e-9;
-  EXPECT_NEAR(span_s, 199 / 100.0, 0.5);
+  // The rate setting took effect: the median interval of the camera's own time stamps is
+  // the 10 ms period. The fake stamps a frame when its thread wakes, so a loaded host adds
+  // a few ms of jitter (the median ignores the late minority); the fake's default rate
+  // would give 40 ms, far outside 10 +- 2 ms.
+  EXPECT_NEAR(camera.frame_rate_hz(), 100.0, 1e-6);
+  std::vector<double> intervals_ms;
+  for (size_t i = 1; i < frames.size(); ++i) {
+    intervals_ms.push_back((frames[i].device_timestamp_ns - frames[i - 1].device_timestamp_ns) * 1e-6);
+  }
+  std::nth_element(intervals_ms.begin(), intervals_ms.begin() + intervals_ms.size() / 2, intervals_ms.end());
+  EXPECT_NEAR(intervals_ms[intervals_ms.size() / 2], 10.0, 2.0);
+  EXPECT_GT(stats.frame_rate_hz, 0.0);
 }
 
 TEST_F(GenicamFake, AppliesMono16AndRegion) {
