@@ -44,14 +44,16 @@ tc::InterfaceSelection parse_interfaces(const std::string& list) {
   std::stringstream ss(list);
   std::string item;
   while (std::getline(ss, item, ',')) {
-    if (item == "gige") {
+    if (item == "none") {
+      continue;
+    } else if (item == "gige") {
       s.gige = true;
     } else if (item == "usb3") {
       s.usb3 = true;
     } else if (item == "fake") {
       s.fake = true;
     } else {
-      throw std::invalid_argument("--interfaces: unknown interface '" + item + "' (expected gige, usb3, fake)");
+      throw std::invalid_argument("--interfaces: unknown interface '" + item + "' (expected gige, usb3, fake or none)");
     }
   }
   return s;
@@ -120,6 +122,7 @@ int run_record(const RecordArgs& a) {
   bool lost = false;
   int exit_code = 0;
   std::string last_status = "streaming";
+  std::string last_message;  // status lines are printed when they change
   while (!g_stop.load()) {
     const double elapsed_s = std::chrono::duration<double>(Clock::now() - t_start).count();
     if (a.seconds > 0 && elapsed_s >= a.seconds) break;
@@ -140,7 +143,8 @@ int run_record(const RecordArgs& a) {
           t_lost = Clock::now();
           recorder.flush_index();  // everything written so far is listed
         }
-        std::cerr << "status: " << r.message << "\n";
+        if (r.message != last_message) std::cerr << "status: " << r.message << "\n";
+        last_message = r.message;
         last_status = "disconnected";
         if (a.give_up_s > 0 &&
             std::chrono::duration<double>(Clock::now() - t_lost).count() > a.give_up_s) {
@@ -151,6 +155,7 @@ int run_record(const RecordArgs& a) {
         break;
       case tc::GrabStatus::kReconnected:
         std::cerr << "status: " << r.message << "\n";
+        last_message.clear();
         lost = false;
         break;
       case tc::GrabStatus::kIncomplete:
@@ -269,7 +274,8 @@ int main(int argc, char** argv) {
   auto* frames_opt = record->add_option("--frames", r.frames, "Stop after N frames")->check(CLI::PositiveNumber);
   auto* seconds_opt = record->add_option("--seconds", r.seconds, "Stop after S seconds")->check(CLI::PositiveNumber);
   frames_opt->excludes(seconds_opt);
-  record->add_option("--interfaces", r.interfaces, "Comma list of gige, usb3, fake")->capture_default_str();
+  record->add_option("--interfaces", r.interfaces,
+                    "Comma list of gige, usb3, fake, or none (a GigE camera given by IP address needs none)")->capture_default_str();
   record->add_option("--pixel-format", r.pixel_format, "Mono8, Mono16, BayerRG8, ... (default: keep)");
   record->add_option("--roi", r.roi, "Region x,y,width,height [px]")->delimiter(',')->expected(4);
   record->add_option("--rate", r.rate_hz, "Frame rate [Hz] (default: keep)");

@@ -11,10 +11,17 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <thread>
+
+#include "rgbdt/core/time_index.hpp"
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/thermal_camera/genicam_camera.hpp"
+
+#include <opencv2/imgcodecs.hpp>
 
 extern char** environ;
 
@@ -168,4 +175,97 @@ TEST(GenicamGige, ReportsAKilledCameraAndRecoversWhenItIsBack) {
   EXPECT_EQ(stats.disconnects, 1u);
   EXPECT_EQ(stats.reconnects, 1u);
   EXPECT_EQ(stats.frames_completed, 40u);
+}
+
+namespace {
+
+namespace fs = std::filesystem;
+
+pid_t spawn_recorder(const std::vector<std::string>& args, const fs::path& log) {
+  const char* dir = std::getenv("RGBDT_BIN_DIR");
+  std::vector<std::string> all = {std::string(dir != nullptr ? dir : RGBDT_BINARY_DIR "/bin") + "/rgbdt_camera"};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  EXPECT_EQ(rc, 0) << "cannot run " << argv[0];
+  return pid;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+size_t count_png(const fs::path& dir) {
+  size_t n = 0;
+  if (!fs::exists(dir)) return 0;
+  for (const auto& e : fs::directory_iterator(dir)) n += e.path().extension() == ".png" ? 1 : 0;
+  return n;
+}
+
+// Polls `done` every 50 ms until it holds or `limit` passes.
+template <typename Pred>
+bool wait_for(Pred done, std::chrono::seconds limit) {
+  const auto deadline = Clock::now() + limit;
+  while (!done()) {
+    if (Clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  return true;
+}
+
+void expect_whole_indexed_frames(const fs::path& out) {
+  const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
+  EXPECT_EQ(count_png(out), index.size()) << "PNG files and index rows differ";
+  for (const auto& e : index) {
+    const cv::Mat image = cv::imread(e.file, cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(image.type(), CV_16UC1) << e.file;
+  }
+}
+
+}  // namespace
+
+TEST(GenicamGige, RecorderKeepsWholeIndexedFramesAcrossACameraLoss) {
+  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "GenicamGige.RecorderAcrossLoss";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path out = dir / "thermal", log = dir / "log";
+  FakeGvCamera fake(unique_serial("R"));
+  fake.start();
+  open_when_ready(fake.device_id(), fast_options());  // up and answering
+
+  const pid_t pid = spawn_recorder({"record", "--interfaces", "none", "--id", fake.device_id(), "--out",
+                                    out.string(), "--seconds", "120", "--pixel-format", "Mono16", "--roi",
+                                    "0,0,320,240", "--rate", "50", "--timeout-ms", "300", "--give-up", "60"},
+                                   log);
+  ASSERT_TRUE(wait_for([&] { return count_png(out) >= 20; }, std::chrono::seconds(20))) << slurp(log);
+
+  fake.kill_now();
+  ASSERT_TRUE(wait_for([&] { return slurp(log).find("lost (") != std::string::npos; }, std::chrono::seconds(30)))
+      << slurp(log);
+  // While the camera is away the recording on disk is already complete and indexed.
+  const size_t frames_before = count_png(out);
+  expect_whole_indexed_frames(out);
+
+  fake.start();
+  ASSERT_TRUE(wait_for([&] { return count_png(out) >= frames_before + 20; }, std::chrono::seconds(40)))
+      << slurp(log);
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_TRUE(wait_for([&] { return ::waitpid(pid, &status, WNOHANG) == pid; }, std::chrono::seconds(20)));
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << slurp(log);
+  const std::string text = slurp(log);
+  EXPECT_NE(text.find("reconnected"), std::string::npos) << text;
+  EXPECT_NE(text.find("disconnects 1, reconnects 1"), std::string::npos) << text;
+  expect_whole_indexed_frames(out);
 }
