@@ -53,7 +53,8 @@ tc::InterfaceSelection parse_interfaces(const std::string& list) {
     } else if (item == "fake") {
       s.fake = true;
     } else {
-      throw std::invalid_argument("--interfaces: unknown interface '" + item + "' (expected gige, usb3, fake or none)");
+      throw std::invalid_argument("--interfaces: unknown interface '" + item +
+                                  "' (expected gige, usb3, fake or none)");
     }
   }
   return s;
@@ -66,10 +67,11 @@ int run_list(const std::string& interfaces) {
     std::cout << "no cameras found on: " << interfaces << "\n";
     return 0;
   }
-  std::printf("%-32s %-11s %-16s %-20s %-12s %s\n", "ID", "PROTOCOL", "VENDOR", "MODEL", "SERIAL", "ADDRESS");
+  std::printf("%-32s %-11s %-16s %-20s %-12s %s\n", "ID", "PROTOCOL", "VENDOR", "MODEL", "SERIAL",
+              "ADDRESS");
   for (const auto& d : devices) {
-    std::printf("%-32s %-11s %-16s %-20s %-12s %s\n", d.id.c_str(), d.protocol.c_str(), d.vendor.c_str(),
-                d.model.c_str(), d.serial.c_str(), d.address.c_str());
+    std::printf("%-32s %-11s %-16s %-20s %-12s %s\n", d.id.c_str(), d.protocol.c_str(),
+                d.vendor.c_str(), d.model.c_str(), d.serial.c_str(), d.address.c_str());
   }
   return 0;
 }
@@ -105,9 +107,9 @@ int run_record(const RecordArgs& a) {
 
   tc::GenicamCamera camera(a.id, options);
   const tc::DeviceInfo info = camera.info();
-  std::cerr << "camera " << a.id << ": " << info.vendor << " " << info.model << " serial " << info.serial
-            << ", " << camera.pixel_format() << " " << camera.region().width << "x" << camera.region().height
-            << "\n";
+  std::cerr << "camera " << a.id << ": " << info.vendor << " " << info.model << " serial "
+            << info.serial << ", " << camera.pixel_format() << " " << camera.region().width << "x"
+            << camera.region().height << "\n";
   tc::FrameRecorderOptions ro;
   ro.out_dir = a.out;
   ro.demosaic_bayer = !a.raw_bayer;
@@ -131,7 +133,8 @@ int run_record(const RecordArgs& a) {
     tc::GrabResult r = camera.grab();
     switch (r.status) {
       case tc::GrabStatus::kFrame: {
-        const uint64_t stamp_ns = a.clock == "device" ? r.frame.device_timestamp_ns : r.frame.host_timestamp_ns;
+        const uint64_t stamp_ns =
+            a.clock == "device" ? r.frame.device_timestamp_ns : r.frame.host_timestamp_ns;
         recorder.write(r.frame, static_cast<double>(stamp_ns) * 1e-9);
         lost = false;
         last_status = "streaming";
@@ -148,7 +151,8 @@ int run_record(const RecordArgs& a) {
         last_status = "disconnected";
         if (a.give_up_s > 0 &&
             std::chrono::duration<double>(Clock::now() - t_lost).count() > a.give_up_s) {
-          std::cerr << "error: camera " << a.id << " did not come back within " << a.give_up_s << " s\n";
+          std::cerr << "error: camera " << a.id << " did not come back within " << a.give_up_s
+                    << " s\n";
           exit_code = 3;
           g_stop.store(true);
         }
@@ -167,7 +171,8 @@ int run_record(const RecordArgs& a) {
       t_report = Clock::now();
       const auto s = camera.statistics();
       std::fprintf(stderr, "frames %zu  fps %.1f  lost %llu  incomplete %llu  timeouts %llu  %s\n",
-                   recorder.frames_written(), s.frame_rate_hz, static_cast<unsigned long long>(s.frames_lost),
+                   recorder.frames_written(), s.frame_rate_hz,
+                   static_cast<unsigned long long>(s.frames_lost),
                    static_cast<unsigned long long>(s.frames_incomplete),
                    static_cast<unsigned long long>(s.timeouts), last_status.c_str());
     }
@@ -179,7 +184,8 @@ int run_record(const RecordArgs& a) {
   std::cout << "recorded " << recorder.frames_written() << " frames in " << elapsed_s << " s to "
             << recorder.index_path() << "\n"
             << "lost " << s.frames_lost << ", incomplete " << s.frames_incomplete << ", timeouts "
-            << s.timeouts << ", disconnects " << s.disconnects << ", reconnects " << s.reconnects << "\n";
+            << s.timeouts << ", disconnects " << s.disconnects << ", reconnects " << s.reconnects
+            << "\n";
   if (g_signal.load() != 0) std::cout << "stopped by signal " << g_signal.load() << "\n";
   if (exit_code == 0 && a.frames > 0 && static_cast<long>(recorder.frames_written()) < a.frames &&
       g_signal.load() == 0) {
@@ -232,10 +238,13 @@ int run_tau2(const Tau2Args& a) {
   static const char* kFfc[] = {"manual", "auto", "external"};
   const auto gain = static_cast<unsigned>(camera.gain_mode());
   const auto ffc = static_cast<unsigned>(camera.ffc_mode());
-  std::printf("camera serial  %u\nsensor serial  %u\nsoftware       %u.%u\nfirmware       %u.%u\n", serial.camera,
-              serial.sensor, rev.software_major, rev.software_minor, rev.firmware_major, rev.firmware_minor);
-  std::printf("gain mode      %s\nffc mode       %s\n", gain < 4 ? kGain[gain] : "?", ffc < 3 ? kFfc[ffc] : "?");
-  std::printf("tlinear        %s, %.2f K/count\n", tlinear ? "on" : "off", tc::kelvin_per_count(resolution));
+  std::printf("camera serial  %u\nsensor serial  %u\nsoftware       %u.%u\nfirmware       %u.%u\n",
+              serial.camera, serial.sensor, rev.software_major, rev.software_minor,
+              rev.firmware_major, rev.firmware_minor);
+  std::printf("gain mode      %s\nffc mode       %s\n", gain < 4 ? kGain[gain] : "?",
+              ffc < 3 ? kFfc[ffc] : "?");
+  std::printf("tlinear        %s, %.2f K/count\n", tlinear ? "on" : "off",
+              tc::kelvin_per_count(resolution));
   std::printf("fpa temp       %.1f degC\nshutter temp   %.2f degC\n", camera.fpa_temperature_c(),
               camera.shutter_temperature_c());
   return 0;
@@ -246,7 +255,8 @@ int run_tau2_emulate() {
   install_signal_handlers();
   std::cout << "emulated Tau2 on " << emulator.path() << " (Ctrl-C to stop)" << std::endl;
   while (!g_stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  std::cout << "served " << emulator.with_emulator([](tc::Tau2Emulator& e) { return e.state().ffc_count; })
+  std::cout << "served "
+            << emulator.with_emulator([](tc::Tau2Emulator& e) { return e.state().ffc_count; })
             << " FFC command(s)\n";
   return 0;
 }
@@ -259,49 +269,66 @@ int main(int argc, char** argv) {
       "  list    show the cameras Aravis finds\n"
       "  record  write frames as PNG (16-bit for Mono16/thermal, 8-bit otherwise) with\n"
       "          index.csv (time_s,file); Ctrl-C stops cleanly, a lost camera is reopened\n"
-          "  tau2    query/configure a Tau2 core over its serial port (tty or FTDI via libusb)\n"
+      "  tau2    query/configure a Tau2 core over its serial port (tty or FTDI via libusb)\n"
       "  tau2-emulate  serve a software Tau2 on a pseudo-terminal (no hardware)"};
   app.require_subcommand(1);
 
   std::string list_interfaces = "gige,usb3";
   auto* list = app.add_subcommand("list", "List the cameras Aravis can see");
-  list->add_option("--interfaces", list_interfaces, "Comma list of gige, usb3, fake")->capture_default_str();
+  list->add_option("--interfaces", list_interfaces, "Comma list of gige, usb3, fake")
+      ->capture_default_str();
 
   RecordArgs r;
   auto* record = app.add_subcommand("record", "Record frames to PNG files with a time index");
-  record->add_option("--id", r.id, "Camera id from `list`, or a GigE camera's IPv4 address")->required();
-  record->add_option("--out", r.out, "Output folder (created; must not hold a recording)")->required();
-  auto* frames_opt = record->add_option("--frames", r.frames, "Stop after N frames")->check(CLI::PositiveNumber);
-  auto* seconds_opt = record->add_option("--seconds", r.seconds, "Stop after S seconds")->check(CLI::PositiveNumber);
+  record->add_option("--id", r.id, "Camera id from `list`, or a GigE camera's IPv4 address")
+      ->required();
+  record->add_option("--out", r.out, "Output folder (created; must not hold a recording)")
+      ->required();
+  auto* frames_opt =
+      record->add_option("--frames", r.frames, "Stop after N frames")->check(CLI::PositiveNumber);
+  auto* seconds_opt = record->add_option("--seconds", r.seconds, "Stop after S seconds")
+                          ->check(CLI::PositiveNumber);
   frames_opt->excludes(seconds_opt);
-  record->add_option("--interfaces", r.interfaces,
-                    "Comma list of gige, usb3, fake, or none (a GigE camera given by IP address needs none)")->capture_default_str();
-  record->add_option("--pixel-format", r.pixel_format, "Mono8, Mono16, BayerRG8, ... (default: keep)");
+  record
+      ->add_option(
+          "--interfaces", r.interfaces,
+          "Comma list of gige, usb3, fake, or none (a GigE camera given by IP address needs none)")
+      ->capture_default_str();
+  record->add_option("--pixel-format", r.pixel_format,
+                     "Mono8, Mono16, BayerRG8, ... (default: keep)");
   record->add_option("--roi", r.roi, "Region x,y,width,height [px]")->delimiter(',')->expected(4);
   record->add_option("--rate", r.rate_hz, "Frame rate [Hz] (default: keep)");
   record->add_option("--exposure", r.exposure_us, "Exposure [us] (default: keep)");
   record->add_option("--timeout-ms", r.timeout_ms, "Frame timeout [ms]")->capture_default_str();
-  record->add_option("--give-up", r.give_up_s, "Stop if a lost camera is not back after S seconds (0: never)")
+  record
+      ->add_option("--give-up", r.give_up_s,
+                   "Stop if a lost camera is not back after S seconds (0: never)")
       ->capture_default_str();
   record->add_flag("--raw-bayer", r.raw_bayer, "Write Bayer mosaics as they come (no demosaicing)");
   record->add_option("--clock", r.clock, "Index times from the host or the device clock")
       ->check(CLI::IsMember({"host", "device"}))
       ->capture_default_str();
-  record->add_option("--png-compression", r.png_compression, "0..9")->check(CLI::Range(0, 9))->capture_default_str();
+  record->add_option("--png-compression", r.png_compression, "0..9")
+      ->check(CLI::Range(0, 9))
+      ->capture_default_str();
 
   Tau2Args t;
-  auto* tau2 = app.add_subcommand("tau2", "Query and configure a FLIR Tau2 over its serial channel");
+  auto* tau2 =
+      app.add_subcommand("tau2", "Query and configure a FLIR Tau2 over its serial channel");
   tau2->add_option("--port", t.port, "Serial device, e.g. /dev/ttyUSB0");
-  tau2->add_flag("--usb", t.usb, "Talk to the FTDI bridge directly through libusb instead of a tty");
+  tau2->add_flag("--usb", t.usb,
+                 "Talk to the FTDI bridge directly through libusb instead of a tty");
   tau2->add_option("--usb-serial", t.usb_serial, "USB serial string of the bridge (with --usb)");
   tau2->add_option("--baud", t.baud, "Baud rate")->capture_default_str();
   tau2->add_flag("--ffc", t.ffc, "Run a flat-field correction");
   tau2->add_option("--tlinear", t.tlinear, "on, off (TLinear output) or high, low (resolution)")
       ->check(CLI::IsMember({"on", "off", "high", "low"}));
-  tau2->add_option("--gain", t.gain, "auto, low, high, manual")->check(CLI::IsMember({"auto", "low", "high", "manual"}));
+  tau2->add_option("--gain", t.gain, "auto, low, high, manual")
+      ->check(CLI::IsMember({"auto", "low", "high", "manual"}));
   tau2->add_flag("--save", t.save, "Store the current settings as power-on defaults");
 
-  auto* emulate = app.add_subcommand("tau2-emulate", "Serve an emulated Tau2 on a pseudo-terminal until Ctrl-C");
+  auto* emulate = app.add_subcommand("tau2-emulate",
+                                     "Serve an emulated Tau2 on a pseudo-terminal until Ctrl-C");
 
   CLI11_PARSE(app, argc, argv);
   rgbdt::core::set_log_sink(rgbdt::core::stderr_log_sink);

@@ -1,7 +1,7 @@
 // Runs the rgbdt_camera program: recording from Aravis's in-process fake camera, stopping
 // with SIGINT, and the Tau2 subcommand against the pty emulator.
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -112,7 +112,8 @@ TEST(RgbdtCamera, HelpExplainsTheSubcommands) {
     EXPECT_NE(text.find(word), std::string::npos) << word;
   }
   EXPECT_NE(run({"record", "--out", (dir / "x").string()}, dir / "log2"), 0) << "--id is required";
-  EXPECT_NE(run({"record", "--id", "Fake_1", "--out", (dir / "y").string(), "--frames", "3", "--seconds", "1"},
+  EXPECT_NE(run({"record", "--id", "Fake_1", "--out", (dir / "y").string(), "--frames", "3",
+                 "--seconds", "1"},
                 dir / "log3"),
             0)
       << "--frames and --seconds exclude each other";
@@ -127,10 +128,11 @@ TEST(RgbdtCamera, ListsTheFakeCamera) {
 TEST(RgbdtCamera, RecordsSixteenBitFramesWithAnIndex) {
   const auto dir = temp_dir("rec");
   const fs::path out = dir / "thermal";
-  ASSERT_EQ(run({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(), "--frames", "30",
-                 "--pixel-format", "Mono16", "--roi", "0,0,320,256", "--rate", "100"},
-                dir / "log"),
-            0)
+  ASSERT_EQ(
+      run({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(), "--frames",
+           "30", "--pixel-format", "Mono16", "--roi", "0,0,320,256", "--rate", "100"},
+          dir / "log"),
+      0)
       << slurp(dir / "log");
   const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
   ASSERT_EQ(index.size(), 30u);
@@ -145,8 +147,8 @@ TEST(RgbdtCamera, RecordsSixteenBitFramesWithAnIndex) {
 TEST(RgbdtCamera, RecordsBayerAsColourPng) {
   const auto dir = temp_dir("rec");
   const fs::path out = dir / "rgb";
-  ASSERT_EQ(run({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(), "--frames", "3",
-                 "--pixel-format", "BayerRG8", "--rate", "50"},
+  ASSERT_EQ(run({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(),
+                 "--frames", "3", "--pixel-format", "BayerRG8", "--rate", "50"},
                 dir / "log"),
             0)
       << slurp(dir / "log");
@@ -156,9 +158,10 @@ TEST(RgbdtCamera, RecordsBayerAsColourPng) {
 TEST(RgbdtCamera, CtrlCLeavesOnlyWholeIndexedFrames) {
   const auto dir = temp_dir("sigint");
   const fs::path out = dir / "thermal";
-  const pid_t pid = spawn({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(),
-                           "--seconds", "60", "--pixel-format", "Mono16", "--rate", "100"},
-                          dir / "log");
+  const pid_t pid =
+      spawn({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(), "--seconds",
+             "60", "--pixel-format", "Mono16", "--rate", "100"},
+            dir / "log");
   // Let it write a few frames (bounded wait), then interrupt it mid-stream.
   const auto deadline = Clock::now() + std::chrono::seconds(20);
   size_t pngs = 0;
@@ -166,20 +169,24 @@ TEST(RgbdtCamera, CtrlCLeavesOnlyWholeIndexedFrames) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     pngs = 0;
     if (fs::exists(out)) {
-      for (const auto& e : fs::directory_iterator(out)) pngs += e.path().extension() == ".png" ? 1 : 0;
+      for (const auto& e : fs::directory_iterator(out))
+        pngs += e.path().extension() == ".png" ? 1 : 0;
     }
   }
   ::kill(pid, SIGINT);
   EXPECT_EQ(wait_exit(pid, std::chrono::seconds(15)), 0) << slurp(dir / "log");
   ASSERT_GE(pngs, 20u) << slurp(dir / "log");
-  EXPECT_NE(slurp(dir / "log").find("stopped by signal 2"), std::string::npos) << slurp(dir / "log");
+  EXPECT_NE(slurp(dir / "log").find("stopped by signal 2"), std::string::npos)
+      << slurp(dir / "log");
   expect_consistent_recording(out, CV_16UC1);
 }
 
 TEST(RgbdtCamera, Tau2SubcommandQueriesAndConfiguresTheCamera) {
   const auto dir = temp_dir("tau2");
   rgbdt::thermal_camera::Tau2PtyEmulator pty;
-  ASSERT_EQ(run({"tau2", "--port", pty.path(), "--ffc", "--tlinear", "on", "--gain", "high"}, dir / "log"), 0)
+  ASSERT_EQ(run({"tau2", "--port", pty.path(), "--ffc", "--tlinear", "on", "--gain", "high"},
+                dir / "log"),
+            0)
       << slurp(dir / "log");
   const std::string text = slurp(dir / "log");
   EXPECT_NE(text.find("camera serial  123456"), std::string::npos) << text;

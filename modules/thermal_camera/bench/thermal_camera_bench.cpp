@@ -24,7 +24,8 @@ static void BM_RecorderWrite(benchmark::State& state) {
   cv::randn(noise, 0, 8);
   for (int v = 0; v < 512; ++v) {
     for (int u = 0; u < 640; ++u) {
-      frame.image.at<uint16_t>(v, u) = static_cast<uint16_t>(7000 + u + v / 2 + noise.at<int16_t>(v, u));
+      frame.image.at<uint16_t>(v, u) =
+          static_cast<uint16_t>(7000 + u + v / 2 + noise.at<int16_t>(v, u));
     }
   }
   frame.pixel_format = "Mono16";
@@ -51,7 +52,8 @@ static void BM_LookupTable(benchmark::State& state) {
   p.F = 1;
   p.O = -342;
   p.emissivity = 0.95;
-  const Radiometry r = state.range(0) == 0 ? Radiometry(LinearRadiometry{0.04, 0.0}) : Radiometry(p);
+  const Radiometry r =
+      state.range(0) == 0 ? Radiometry(LinearRadiometry{0.04, 0.0}) : Radiometry(p);
   for (auto _ : state) benchmark::DoNotOptimize(r.lookup_table());
   state.SetLabel(state.range(0) == 0 ? "linear" : "planck");
 }

@@ -39,7 +39,8 @@ inline std::string check_tau2_input(const uint8_t* data, size_t size) {
   size_t offset = 0;
   while (offset < out.size()) {
     const t2::ParseResult p = t2::parse(out.data() + offset, out.size() - offset);
-    if (p.kind != t2::ParseResult::Kind::kPacket) return "emulator sent a malformed reply: " + p.error;
+    if (p.kind != t2::ParseResult::Kind::kPacket)
+      return "emulator sent a malformed reply: " + p.error;
     offset += p.consumed;
   }
   return {};

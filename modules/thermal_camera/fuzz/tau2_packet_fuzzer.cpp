@@ -2,7 +2,8 @@
 // Build (separate build folder, clang):
 //   CC=clang-14 CXX=clang++-14 cmake -S . -B build-fuzz -G Ninja -DRGBDT_BUILD_FUZZERS=ON
 //   cmake --build build-fuzz --target tau2_packet_fuzzer
-//   build-fuzz/bin/tau2_packet_fuzzer -max_total_time=180 CORPUS_DIR modules/thermal_camera/fuzz/corpus
+//   build-fuzz/bin/tau2_packet_fuzzer -max_total_time=180 CORPUS_DIR
+//   modules/thermal_camera/fuzz/corpus
 #include <cstdio>
 #include <cstdlib>
 

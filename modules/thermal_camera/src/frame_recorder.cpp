@@ -26,7 +26,8 @@ void write_atomically(const fs::path& path, const std::vector<uchar>& bytes) {
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
     if (!f) throw core::Error(tmp.string(), "cannot open for writing");
-    f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    f.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
     f.close();
     if (!f) {
       std::error_code ignored;
@@ -36,7 +37,9 @@ void write_atomically(const fs::path& path, const std::vector<uchar>& bytes) {
   }
   std::error_code ec;
   fs::rename(tmp, path, ec);
-  if (ec) throw core::Error(path.string(), "cannot rename the temporary file into place: " + ec.message());
+  if (ec)
+    throw core::Error(path.string(),
+                      "cannot rename the temporary file into place: " + ec.message());
 }
 
 }  // namespace
@@ -80,8 +83,8 @@ std::string FrameRecorder::write(const Frame& frame, double time_s) {
   const fs::path path = fs::path(options_.out_dir) / name;
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png, {cv::IMWRITE_PNG_COMPRESSION, options_.png_compression})) {
-    throw core::Error(path.string(), "PNG encoding failed for a " + std::to_string(image.cols) + "x" +
-                                         std::to_string(image.rows) + " image of type " +
+    throw core::Error(path.string(), "PNG encoding failed for a " + std::to_string(image.cols) +
+                                         "x" + std::to_string(image.rows) + " image of type " +
                                          std::to_string(image.type()));
   }
   write_atomically(path, png);
@@ -97,7 +100,8 @@ void FrameRecorder::flush_index() {
   core::write_time_index(tmp.string(), entries_);
   std::error_code ec;
   fs::rename(tmp, final_path, ec);
-  if (ec) throw core::Error(index_path_, "cannot rename the temporary index into place: " + ec.message());
+  if (ec)
+    throw core::Error(index_path_, "cannot rename the temporary index into place: " + ec.message());
   last_flush_s_ = monotonic_s();
   dirty_ = false;
 }

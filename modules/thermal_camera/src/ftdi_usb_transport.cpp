@@ -23,7 +23,8 @@
 namespace rgbdt::thermal_camera {
 namespace {
 
-constexpr uint8_t kVendorOut = LIBUSB_REQUEST_TYPE_VENDOR | LIBUSB_RECIPIENT_DEVICE | LIBUSB_ENDPOINT_OUT;
+constexpr uint8_t kVendorOut =
+    LIBUSB_REQUEST_TYPE_VENDOR | LIBUSB_RECIPIENT_DEVICE | LIBUSB_ENDPOINT_OUT;
 constexpr uint8_t kReset = 0x00;
 constexpr uint8_t kSetFlowCtrl = 0x02;
 constexpr uint8_t kSetBaudRate = 0x03;
@@ -43,7 +44,8 @@ std::string FtdiUsbOptions::validate() const {
   if (interface_number < 0 || interface_number > 3) {
     return "interface_number = " + std::to_string(interface_number) + ", expected 0..3";
   }
-  if (baud < 300 || baud > 3000000) return "baud = " + std::to_string(baud) + ", expected 300..3000000";
+  if (baud < 300 || baud > 3000000)
+    return "baud = " + std::to_string(baud) + ", expected 300..3000000";
   if (latency_timer_ms < 1 || latency_timer_ms > 255) {
     return "latency_timer_ms = " + std::to_string(latency_timer_ms) + ", expected 1..255";
   }
@@ -130,7 +132,8 @@ struct FtdiUsbTransport::Impl {
       if (!options.serial.empty()) {
         unsigned char text[128] = {0};
         const int len = desc.iSerialNumber == 0 ? -1
-                        : libusb_get_string_descriptor_ascii(h, desc.iSerialNumber, text, sizeof text);
+                                                : libusb_get_string_descriptor_ascii(
+                                                      h, desc.iSerialNumber, text, sizeof text);
         if (len < 0 || options.serial != reinterpret_cast<char*>(text)) {
           libusb_close(h);
           continue;
@@ -154,7 +157,8 @@ struct FtdiUsbTransport::Impl {
 
     const auto divisor = baud_divisor(options.baud);
     if (std::abs(divisor.actual_baud - options.baud) > 0.03 * options.baud) {
-      throw core::Error(name, "baud " + std::to_string(options.baud) + " cannot be made within 3 % (nearest " +
+      throw core::Error(name, "baud " + std::to_string(options.baud) +
+                                  " cannot be made within 3 % (nearest " +
                                   std::to_string(divisor.actual_baud) + ")");
     }
     // Multi-channel chips take the channel in the low byte of the index.
@@ -163,7 +167,8 @@ struct FtdiUsbTransport::Impl {
                                     : divisor.index;
     control(kReset, 0, channel_index(), "RESET");
     control(kSetFlowCtrl, 0, channel_index(), "SET_FLOW_CTRL none");
-    control(kSetBaudRate, divisor.value, baud_index, "SET_BAUD_RATE " + std::to_string(options.baud));
+    control(kSetBaudRate, divisor.value, baud_index,
+            "SET_BAUD_RATE " + std::to_string(options.baud));
     control(kSetData, 0x0008, channel_index(), "SET_DATA 8N1");
     control(kSetLatencyTimer, static_cast<uint16_t>(options.latency_timer_ms), channel_index(),
             "SET_LATENCY_TIMER");
@@ -194,7 +199,8 @@ struct FtdiUsbTransport::Impl {
   }
 };
 
-FtdiUsbTransport::FtdiUsbTransport(const FtdiUsbOptions& options) : impl_(std::make_unique<Impl>()) {
+FtdiUsbTransport::FtdiUsbTransport(const FtdiUsbOptions& options)
+    : impl_(std::make_unique<Impl>()) {
   if (const auto why = options.validate(); !why.empty()) {
     throw std::invalid_argument("FtdiUsbOptions: " + why);
   }
@@ -211,10 +217,12 @@ void FtdiUsbTransport::write(const uint8_t* data, size_t size) {
   size_t done = 0;
   while (done < size) {
     int sent = 0;
-    const int rc = libusb_bulk_transfer(impl_->handle, impl_->endpoint_out, const_cast<uint8_t*>(data + done),
-                                        static_cast<int>(size - done), &sent, 1000);
+    const int rc =
+        libusb_bulk_transfer(impl_->handle, impl_->endpoint_out, const_cast<uint8_t*>(data + done),
+                             static_cast<int>(size - done), &sent, 1000);
     if (rc != 0 && rc != LIBUSB_ERROR_TIMEOUT) impl_->fail("bulk write", rc);
-    if (sent == 0 && rc == LIBUSB_ERROR_TIMEOUT) throw core::Error(impl_->name, "bulk write timed out");
+    if (sent == 0 && rc == LIBUSB_ERROR_TIMEOUT)
+      throw core::Error(impl_->name, "bulk write timed out");
     done += static_cast<size_t>(sent);
   }
 }
@@ -226,15 +234,19 @@ size_t FtdiUsbTransport::read(uint8_t* data, size_t size, int timeout_ms) {
   // The chip answers every latency period with at least its two status bytes, so loop
   // until data arrives or the deadline passes.
   while (impl_->rx.empty()) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
     if (left <= 0) return 0;
     int got = 0;
-    const int rc = libusb_bulk_transfer(impl_->handle, impl_->endpoint_in, packet.data(),
-                                        static_cast<int>(packet.size()), &got, static_cast<unsigned>(left));
+    const int rc =
+        libusb_bulk_transfer(impl_->handle, impl_->endpoint_in, packet.data(),
+                             static_cast<int>(packet.size()), &got, static_cast<unsigned>(left));
     if (rc != 0 && rc != LIBUSB_ERROR_TIMEOUT) impl_->fail("bulk read", rc);
     for (int offset = 0; offset < got; offset += impl_->max_packet) {
       const int chunk = std::min(impl_->max_packet, got - offset);
-      if (chunk > 2) impl_->rx.insert(impl_->rx.end(), packet.begin() + offset + 2, packet.begin() + offset + chunk);
+      if (chunk > 2)
+        impl_->rx.insert(impl_->rx.end(), packet.begin() + offset + 2,
+                         packet.begin() + offset + chunk);
     }
   }
   const size_t n = std::min(size, impl_->rx.size());

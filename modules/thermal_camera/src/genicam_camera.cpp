@@ -76,11 +76,13 @@ GInetAddress* interface_for(GInetAddress* device, std::string* why) {
   }
   GInetAddress* found = nullptr;
   for (ifaddrs* it = list; it != nullptr && found == nullptr; it = it->ifa_next) {
-    if (it->ifa_addr == nullptr || it->ifa_netmask == nullptr || it->ifa_addr->sa_family != AF_INET) continue;
+    if (it->ifa_addr == nullptr || it->ifa_netmask == nullptr || it->ifa_addr->sa_family != AF_INET)
+      continue;
     const uint32_t a = reinterpret_cast<sockaddr_in*>(it->ifa_addr)->sin_addr.s_addr;
     const uint32_t m = reinterpret_cast<sockaddr_in*>(it->ifa_netmask)->sin_addr.s_addr;
     if ((a & m) == (d & m)) {
-      found = g_inet_address_new_from_bytes(reinterpret_cast<const guint8*>(&a), G_SOCKET_FAMILY_IPV4);
+      found =
+          g_inet_address_new_from_bytes(reinterpret_cast<const guint8*>(&a), G_SOCKET_FAMILY_IPV4);
     }
   }
   freeifaddrs(list);
@@ -160,8 +162,10 @@ std::string GenicamOptions::validate() const {
   if (region && (region->x < 0 || region->y < 0 || region->width < 0 || region->height < 0)) {
     return "region has a negative value";
   }
-  if (!(frame_rate_hz >= 0.0)) return "frame_rate_hz = " + std::to_string(frame_rate_hz) + ", expected >= 0";
-  if (!(exposure_us >= 0.0)) return "exposure_us = " + std::to_string(exposure_us) + ", expected >= 0";
+  if (!(frame_rate_hz >= 0.0))
+    return "frame_rate_hz = " + std::to_string(frame_rate_hz) + ", expected >= 0";
+  if (!(exposure_us >= 0.0))
+    return "exposure_us = " + std::to_string(exposure_us) + ", expected >= 0";
   if (buffer_count < 2) return "buffer_count = " + std::to_string(buffer_count) + ", expected >= 2";
   if (timeout_ms < 1) return "timeout_ms = " + std::to_string(timeout_ms) + ", expected >= 1";
   if (timeouts_before_reconnect < 1) {
@@ -183,11 +187,16 @@ cv::Mat to_viewable(const Frame& frame) {
 
 const char* to_string(GrabStatus status) {
   switch (status) {
-    case GrabStatus::kFrame: return "frame";
-    case GrabStatus::kIncomplete: return "incomplete";
-    case GrabStatus::kTimeout: return "timeout";
-    case GrabStatus::kDisconnected: return "disconnected";
-    case GrabStatus::kReconnected: return "reconnected";
+    case GrabStatus::kFrame:
+      return "frame";
+    case GrabStatus::kIncomplete:
+      return "incomplete";
+    case GrabStatus::kTimeout:
+      return "timeout";
+    case GrabStatus::kDisconnected:
+      return "disconnected";
+    case GrabStatus::kReconnected:
+      return "reconnected";
   }
   return "unknown";
 }
@@ -277,11 +286,13 @@ struct GenicamCamera::Impl {
     }
     if (options.frame_rate_hz > 0.0) {
       arv_camera_set_frame_rate(camera, options.frame_rate_hz, &error);
-      if (error) fail("AcquisitionFrameRate = " + std::to_string(options.frame_rate_hz) + " refused", error);
+      if (error)
+        fail("AcquisitionFrameRate = " + std::to_string(options.frame_rate_hz) + " refused", error);
     }
     if (options.exposure_us > 0.0) {
       arv_camera_set_exposure_time(camera, options.exposure_us, &error);
-      if (error) fail("ExposureTime = " + std::to_string(options.exposure_us) + " us refused", error);
+      if (error)
+        fail("ExposureTime = " + std::to_string(options.exposure_us) + " us refused", error);
     }
     if (arv_camera_is_gv_device(camera)) {
       if (options.packet_size_bytes > 0) {
@@ -299,7 +310,8 @@ struct GenicamCamera::Impl {
     if (error) fail("cannot read PixelFormat", error);
     if (cv_type_for(format) < 0) {
       throw core::Error("camera '" + device_id + "'",
-                        "pixel format '" + str_or_empty(arv_camera_get_pixel_format_as_string(camera, nullptr)) +
+                        "pixel format '" +
+                            str_or_empty(arv_camera_get_pixel_format_as_string(camera, nullptr)) +
                             "' is not supported (expected Mono8..Mono16, RGB8 or Bayer*8)");
     }
     arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
@@ -324,7 +336,8 @@ struct GenicamCamera::Impl {
     if (camera != nullptr && stream != nullptr && device_alive) {
       GError* error = nullptr;
       arv_camera_stop_acquisition(camera, &error);
-      if (error) core::log_warning("camera '", device_id, "': AcquisitionStop: ", take_message(error));
+      if (error)
+        core::log_warning("camera '", device_id, "': AcquisitionStop: ", take_message(error));
     }
     if (stream != nullptr) {
       g_object_unref(stream);
@@ -415,7 +428,8 @@ struct GenicamCamera::Impl {
       return r;
     }
     ++stats.reconnects;
-    core::log_info("camera '", device_id, "' reconnected after ", reconnect_attempts, " attempt(s)");
+    core::log_info("camera '", device_id, "' reconnected after ", reconnect_attempts,
+                   " attempt(s)");
     r.status = GrabStatus::kReconnected;
     r.message = "device '" + device_id + "' reconnected after " +
                 std::to_string(reconnect_attempts) + " attempt(s)";
@@ -451,16 +465,18 @@ struct GenicamCamera::Impl {
     if (!connected) return try_reconnect();
     if (control_lost.load()) return declare_lost("control channel lost (no heartbeat reply)");
 
-    ArvBuffer* buffer = arv_stream_timeout_pop_buffer(
-        stream, static_cast<guint64>(options.timeout_ms) * 1000);
+    ArvBuffer* buffer =
+        arv_stream_timeout_pop_buffer(stream, static_cast<guint64>(options.timeout_ms) * 1000);
     GrabResult r;
     if (buffer == nullptr) {
       ++stats.timeouts;
       ++consecutive_timeouts;
       if (consecutive_timeouts >= options.timeouts_before_reconnect && !device_answers()) {
-        return declare_lost(control_lost.load() ? "control channel lost"
-                                                : "no frame for " + std::to_string(consecutive_timeouts * options.timeout_ms) +
-                                                      " ms and no register reply: " + lost_reason);
+        return declare_lost(control_lost.load()
+                                ? "control channel lost"
+                                : "no frame for " +
+                                      std::to_string(consecutive_timeouts * options.timeout_ms) +
+                                      " ms and no register reply: " + lost_reason);
       }
       r.status = GrabStatus::kTimeout;
       r.message = "no frame within " + std::to_string(options.timeout_ms) + " ms";
@@ -474,7 +490,8 @@ struct GenicamCamera::Impl {
       count_frame_id(arv_buffer_get_frame_id(buffer));
       r.status = GrabStatus::kIncomplete;
       r.message = "frame " + std::to_string(arv_buffer_get_frame_id(buffer)) +
-                  " incomplete (Aravis buffer status " + std::to_string(static_cast<int>(status)) + ")";
+                  " incomplete (Aravis buffer status " + std::to_string(static_cast<int>(status)) +
+                  ")";
       arv_stream_push_buffer(stream, buffer);
       return r;
     }
@@ -488,8 +505,8 @@ struct GenicamCamera::Impl {
     if (type < 0 || data == nullptr || size < needed) {
       ++stats.frames_incomplete;
       r.status = GrabStatus::kIncomplete;
-      r.message = "frame " + std::to_string(arv_buffer_get_frame_id(buffer)) +
-                  " has " + std::to_string(size) + " bytes of image data, expected " +
+      r.message = "frame " + std::to_string(arv_buffer_get_frame_id(buffer)) + " has " +
+                  std::to_string(size) + " bytes of image data, expected " +
                   std::to_string(needed) + " for " + std::to_string(width) + "x" +
                   std::to_string(height);
       arv_stream_push_buffer(stream, buffer);
@@ -519,17 +536,28 @@ struct GenicamCamera::Impl {
 
   static std::string current_format_name(ArvPixelFormat format) {
     switch (format) {
-      case ARV_PIXEL_FORMAT_MONO_8: return "Mono8";
-      case ARV_PIXEL_FORMAT_MONO_10: return "Mono10";
-      case ARV_PIXEL_FORMAT_MONO_12: return "Mono12";
-      case ARV_PIXEL_FORMAT_MONO_14: return "Mono14";
-      case ARV_PIXEL_FORMAT_MONO_16: return "Mono16";
-      case ARV_PIXEL_FORMAT_BAYER_RG_8: return "BayerRG8";
-      case ARV_PIXEL_FORMAT_BAYER_GR_8: return "BayerGR8";
-      case ARV_PIXEL_FORMAT_BAYER_GB_8: return "BayerGB8";
-      case ARV_PIXEL_FORMAT_BAYER_BG_8: return "BayerBG8";
-      case ARV_PIXEL_FORMAT_RGB_8_PACKED: return "RGB8";
-      default: return "0x" + std::to_string(static_cast<unsigned>(format));
+      case ARV_PIXEL_FORMAT_MONO_8:
+        return "Mono8";
+      case ARV_PIXEL_FORMAT_MONO_10:
+        return "Mono10";
+      case ARV_PIXEL_FORMAT_MONO_12:
+        return "Mono12";
+      case ARV_PIXEL_FORMAT_MONO_14:
+        return "Mono14";
+      case ARV_PIXEL_FORMAT_MONO_16:
+        return "Mono16";
+      case ARV_PIXEL_FORMAT_BAYER_RG_8:
+        return "BayerRG8";
+      case ARV_PIXEL_FORMAT_BAYER_GR_8:
+        return "BayerGR8";
+      case ARV_PIXEL_FORMAT_BAYER_GB_8:
+        return "BayerGB8";
+      case ARV_PIXEL_FORMAT_BAYER_BG_8:
+        return "BayerBG8";
+      case ARV_PIXEL_FORMAT_RGB_8_PACKED:
+        return "RGB8";
+      default:
+        return "0x" + std::to_string(static_cast<unsigned>(format));
     }
   }
 };
@@ -557,7 +585,7 @@ DeviceInfo GenicamCamera::info() const {
   d.vendor = str_or_empty(arv_camera_get_vendor_name(c, nullptr));
   d.model = str_or_empty(arv_camera_get_model_name(c, nullptr));
   d.serial = str_or_empty(arv_camera_get_device_serial_number(c, nullptr));
-  d.protocol = arv_camera_is_gv_device(c) ? "GigEVision"
+  d.protocol = arv_camera_is_gv_device(c)   ? "GigEVision"
                : arv_camera_is_uv_device(c) ? "USB3Vision"
                                             : "Fake";
   return d;
@@ -617,7 +645,8 @@ void GenicamCamera::stop() {
   if (impl_->stream != nullptr) {
     GError* error = nullptr;
     arv_camera_stop_acquisition(impl_->camera, &error);
-    if (error) core::log_warning("camera '", impl_->device_id, "': AcquisitionStop: ", take_message(error));
+    if (error)
+      core::log_warning("camera '", impl_->device_id, "': AcquisitionStop: ", take_message(error));
     g_object_unref(impl_->stream);
     impl_->stream = nullptr;
   }

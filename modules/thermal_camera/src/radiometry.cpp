@@ -125,8 +125,7 @@ double Radiometry::kelvin_from_signal(double counts) const {
   if (type_ == Type::kLinear) return linear_.kelvin_per_count * counts + linear_.offset_k;
   const PlanckRadiometry& p = planck_;
   // Eq. (3): remove the reflected part, then Eq. (1).
-  const double object_signal =
-      (counts - (1.0 - p.emissivity) * reflected_signal_) / p.emissivity;
+  const double object_signal = (counts - (1.0 - p.emissivity) * reflected_signal_) / p.emissivity;
   const double x = object_signal - p.O;
   if (!(x > 0.0)) return kNaN;
   const double log_arg = p.R / x + p.F;
@@ -162,9 +161,8 @@ std::string Radiometry::describe() const {
   if (type_ == Type::kLinear) {
     os << "linear " << linear_.kelvin_per_count << " K/count + " << linear_.offset_k << " K";
   } else {
-    os << "planck R=" << planck_.R << " B=" << planck_.B << " F=" << planck_.F
-       << " O=" << planck_.O << " emissivity=" << planck_.emissivity
-       << " reflected=" << planck_.reflected_k << " K";
+    os << "planck R=" << planck_.R << " B=" << planck_.B << " F=" << planck_.F << " O=" << planck_.O
+       << " emissivity=" << planck_.emissivity << " reflected=" << planck_.reflected_k << " K";
   }
   return os.str();
 }

@@ -23,7 +23,8 @@ double kelvin_per_count(Tau2TLinearResolution resolution) {
 }
 
 std::string Tau2Options::validate() const {
-  if (reply_timeout_ms < 1) return "reply_timeout_ms = " + std::to_string(reply_timeout_ms) + ", expected >= 1";
+  if (reply_timeout_ms < 1)
+    return "reply_timeout_ms = " + std::to_string(reply_timeout_ms) + ", expected >= 1";
   if (busy_retries < 0) return "busy_retries = " + std::to_string(busy_retries) + ", expected >= 0";
   return {};
 }
@@ -55,7 +56,8 @@ Packet Tau2::transact(Function function, const std::vector<uint8_t>& payload) {
       if (r.kind == ParseResult::Kind::kError) {
         throw tau2::ProtocolError(source, "corrupt reply to " + what + ": " + r.error);
       }
-      const auto left_ms = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+      const auto left_ms =
+          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
       size_t got = 0;
       if (left_ms > 0) {
         uint8_t buf[256];
@@ -65,8 +67,9 @@ Packet Tau2::transact(Function function, const std::vector<uint8_t>& payload) {
       }
       if (got == 0 && Clock::now() >= deadline) {
         if (rx.empty()) {
-          throw Tau2Error(source, "no reply to " + what + " within " +
-                                      std::to_string(options_.reply_timeout_ms) + " ms",
+          throw Tau2Error(source,
+                          "no reply to " + what + " within " +
+                              std::to_string(options_.reply_timeout_ms) + " ms",
                           Status::kTimeoutError);
         }
         throw tau2::ProtocolError(source, "truncated reply to " + what + ": " +
@@ -76,8 +79,9 @@ Packet Tau2::transact(Function function, const std::vector<uint8_t>& payload) {
     }
     const Packet& reply = r.packet;
     if (reply.function != code) {
-      throw Tau2Error(source, "reply to " + tau2::function_name(reply.function) + " for a " + what + " command",
-                      static_cast<Status>(reply.status));
+      throw Tau2Error(
+          source, "reply to " + tau2::function_name(reply.function) + " for a " + what + " command",
+          static_cast<Status>(reply.status));
     }
     const auto status = static_cast<Status>(reply.status);
     if (status == Status::kBusy && attempt < options_.busy_retries) {
@@ -97,8 +101,10 @@ Tau2SerialNumbers Tau2::serial_numbers() {
   const Packet r = transact(Function::kSerialNumber);
   const std::string what = "SERIAL_NUMBER reply";
   Tau2SerialNumbers s;
-  s.camera = (uint32_t{tau2::word_at(r.payload, 0, what)} << 16) | tau2::word_at(r.payload, 1, what);
-  s.sensor = (uint32_t{tau2::word_at(r.payload, 2, what)} << 16) | tau2::word_at(r.payload, 3, what);
+  s.camera =
+      (uint32_t{tau2::word_at(r.payload, 0, what)} << 16) | tau2::word_at(r.payload, 1, what);
+  s.sensor =
+      (uint32_t{tau2::word_at(r.payload, 2, what)} << 16) | tau2::word_at(r.payload, 3, what);
   return s;
 }
 
@@ -112,7 +118,8 @@ Tau2Revision Tau2::revision() {
 void Tau2::do_ffc() { transact(Function::kDoFfc); }
 
 Tau2FfcMode Tau2::ffc_mode() {
-  return static_cast<Tau2FfcMode>(tau2::word_at(transact(Function::kFfcModeSelect).payload, 0, "FFC_MODE_SELECT reply"));
+  return static_cast<Tau2FfcMode>(
+      tau2::word_at(transact(Function::kFfcModeSelect).payload, 0, "FFC_MODE_SELECT reply"));
 }
 
 void Tau2::set_ffc_mode(Tau2FfcMode mode) {
@@ -120,7 +127,8 @@ void Tau2::set_ffc_mode(Tau2FfcMode mode) {
 }
 
 Tau2GainMode Tau2::gain_mode() {
-  return static_cast<Tau2GainMode>(tau2::word_at(transact(Function::kGainMode).payload, 0, "GAIN_MODE reply"));
+  return static_cast<Tau2GainMode>(
+      tau2::word_at(transact(Function::kGainMode).payload, 0, "GAIN_MODE reply"));
 }
 
 void Tau2::set_gain_mode(Tau2GainMode mode) {
@@ -129,7 +137,8 @@ void Tau2::set_gain_mode(Tau2GainMode mode) {
 
 bool Tau2::tlinear_enabled() {
   const auto sub = static_cast<uint16_t>(tau2::TlinSubcommand::kOutputEnable);
-  return tau2::word_at(transact(Function::kTlinCommands, tau2::words({sub})).payload, 0, "TLIN_COMMANDS reply") != 0;
+  return tau2::word_at(transact(Function::kTlinCommands, tau2::words({sub})).payload, 0,
+                       "TLIN_COMMANDS reply") != 0;
 }
 
 void Tau2::set_tlinear_enabled(bool enabled) {
@@ -139,8 +148,8 @@ void Tau2::set_tlinear_enabled(bool enabled) {
 
 Tau2TLinearResolution Tau2::tlinear_resolution() {
   const auto sub = static_cast<uint16_t>(tau2::TlinSubcommand::kResolution);
-  return static_cast<Tau2TLinearResolution>(
-      tau2::word_at(transact(Function::kTlinCommands, tau2::words({sub})).payload, 0, "TLIN_COMMANDS reply"));
+  return static_cast<Tau2TLinearResolution>(tau2::word_at(
+      transact(Function::kTlinCommands, tau2::words({sub})).payload, 0, "TLIN_COMMANDS reply"));
 }
 
 void Tau2::set_tlinear_resolution(Tau2TLinearResolution resolution) {
@@ -150,13 +159,14 @@ void Tau2::set_tlinear_resolution(Tau2TLinearResolution resolution) {
 
 double Tau2::fpa_temperature_c() {
   // READ_SENSOR argument 0x0000: FPA temperature as a signed word in 0.1 degC.
-  const uint16_t w = tau2::word_at(transact(Function::kReadSensor, tau2::words({0x0000})).payload, 0,
-                                   "READ_SENSOR reply");
+  const uint16_t w = tau2::word_at(transact(Function::kReadSensor, tau2::words({0x0000})).payload,
+                                   0, "READ_SENSOR reply");
   return static_cast<int16_t>(w) / 10.0;
 }
 
 double Tau2::shutter_temperature_c() {
-  const uint16_t w = tau2::word_at(transact(Function::kShutterTemp).payload, 0, "SHUTTER_TEMP reply");
+  const uint16_t w =
+      tau2::word_at(transact(Function::kShutterTemp).payload, 0, "SHUTTER_TEMP reply");
   return static_cast<int16_t>(w) / 100.0;
 }
 
@@ -175,9 +185,9 @@ std::vector<uint8_t> Tau2Emulator::feed(const uint8_t* data, size_t size) {
       Packet reply;
       reply.function = pending_.size() > 3 ? pending_[3] : 0;
       reply.status = static_cast<uint8_t>(
-          r.error.find("CRC") != std::string::npos    ? Status::kChecksumError
+          r.error.find("CRC") != std::string::npos          ? Status::kChecksumError
           : r.error.find("byte count") != std::string::npos ? Status::kByteCountError
-                                                              : Status::kUndefinedProcessError);
+                                                            : Status::kUndefinedProcessError);
       pending_.clear();
       const auto bytes = reply_bytes(reply);
       out.insert(out.end(), bytes.begin(), bytes.end());
@@ -233,7 +243,9 @@ Packet Tau2Emulator::handle(const Packet& command) {
     reply.payload.clear();
     return reply;
   };
-  const auto arg = [&](size_t i) { return static_cast<uint16_t>((in[2 * i] << 8) | in[2 * i + 1]); };
+  const auto arg = [&](size_t i) {
+    return static_cast<uint16_t>((in[2 * i] << 8) | in[2 * i + 1]);
+  };
   // Get (no payload) or set (one word within [0, max]) of a mode; replies with the mode.
   const auto get_set = [&](uint16_t& value, uint16_t max) {
     if (in.size() == 2) {
@@ -295,8 +307,9 @@ Packet Tau2Emulator::handle(const Packet& command) {
       }
       const bool is_enable = sub == tau2::TlinSubcommand::kOutputEnable;
       if (in.size() == 2) {
-        reply.payload = tau2::words({static_cast<uint16_t>(
-            is_enable ? state_.tlinear_enabled : static_cast<uint16_t>(state_.tlinear_resolution))});
+        reply.payload = tau2::words(
+            {static_cast<uint16_t>(is_enable ? state_.tlinear_enabled
+                                             : static_cast<uint16_t>(state_.tlinear_resolution))});
         return reply;
       }
       if (arg(1) > 1) return error(Status::kRangeError);
@@ -316,7 +329,8 @@ Packet Tau2Emulator::handle(const Packet& command) {
 Tau2PtyEmulator::Tau2PtyEmulator() {
   char name[256] = {0};
   if (::openpty(&master_fd_, &slave_fd_, name, nullptr, nullptr) != 0) {
-    throw core::Error("openpty", std::string("cannot create a pseudo-terminal: ") + std::strerror(errno));
+    throw core::Error("openpty",
+                      std::string("cannot create a pseudo-terminal: ") + std::strerror(errno));
   }
   path_ = name;
   // Raw mode on both sides: no echo, no CR/LF translation of binary packets.

@@ -24,33 +24,54 @@ uint16_t be16(const uint8_t* p) { return static_cast<uint16_t>((p[0] << 8) | p[1
 
 std::string to_string(Status status) {
   switch (status) {
-    case Status::kOk: return "CAM_OK";
-    case Status::kBusy: return "CAM_BUSY";
-    case Status::kNotReady: return "CAM_NOT_READY";
-    case Status::kRangeError: return "CAM_RANGE_ERROR";
-    case Status::kChecksumError: return "CAM_CHECKSUM_ERROR";
-    case Status::kUndefinedProcessError: return "CAM_UNDEFINED_PROCESS_ERROR";
-    case Status::kUndefinedFunctionError: return "CAM_UNDEFINED_FUNCTION_ERROR";
-    case Status::kTimeoutError: return "CAM_TIMEOUT_ERROR";
-    case Status::kByteCountError: return "CAM_BYTE_COUNT_ERROR";
-    case Status::kFeatureNotEnabled: return "CAM_FEATURE_NOT_ENABLED";
+    case Status::kOk:
+      return "CAM_OK";
+    case Status::kBusy:
+      return "CAM_BUSY";
+    case Status::kNotReady:
+      return "CAM_NOT_READY";
+    case Status::kRangeError:
+      return "CAM_RANGE_ERROR";
+    case Status::kChecksumError:
+      return "CAM_CHECKSUM_ERROR";
+    case Status::kUndefinedProcessError:
+      return "CAM_UNDEFINED_PROCESS_ERROR";
+    case Status::kUndefinedFunctionError:
+      return "CAM_UNDEFINED_FUNCTION_ERROR";
+    case Status::kTimeoutError:
+      return "CAM_TIMEOUT_ERROR";
+    case Status::kByteCountError:
+      return "CAM_BYTE_COUNT_ERROR";
+    case Status::kFeatureNotEnabled:
+      return "CAM_FEATURE_NOT_ENABLED";
   }
   return "status " + hex8(static_cast<unsigned>(status));
 }
 
 std::string function_name(uint8_t function) {
   switch (static_cast<Function>(function)) {
-    case Function::kNoOp: return "NO_OP";
-    case Function::kSetDefaults: return "SET_DEFAULTS";
-    case Function::kCameraReset: return "CAMERA_RESET";
-    case Function::kSerialNumber: return "SERIAL_NUMBER";
-    case Function::kGetRevision: return "GET_REVISION";
-    case Function::kGainMode: return "GAIN_MODE";
-    case Function::kFfcModeSelect: return "FFC_MODE_SELECT";
-    case Function::kDoFfc: return "DO_FFC";
-    case Function::kReadSensor: return "READ_SENSOR";
-    case Function::kShutterTemp: return "SHUTTER_TEMP";
-    case Function::kTlinCommands: return "TLIN_COMMANDS";
+    case Function::kNoOp:
+      return "NO_OP";
+    case Function::kSetDefaults:
+      return "SET_DEFAULTS";
+    case Function::kCameraReset:
+      return "CAMERA_RESET";
+    case Function::kSerialNumber:
+      return "SERIAL_NUMBER";
+    case Function::kGetRevision:
+      return "GET_REVISION";
+    case Function::kGainMode:
+      return "GAIN_MODE";
+    case Function::kFfcModeSelect:
+      return "FFC_MODE_SELECT";
+    case Function::kDoFfc:
+      return "DO_FFC";
+    case Function::kReadSensor:
+      return "READ_SENSOR";
+    case Function::kShutterTemp:
+      return "SHUTTER_TEMP";
+    case Function::kTlinCommands:
+      return "TLIN_COMMANDS";
   }
   return "function " + hex8(function);
 }
@@ -72,8 +93,12 @@ std::vector<uint8_t> encode(const Packet& packet) {
                                 " bytes, expected at most " + std::to_string(kMaxPayloadBytes));
   }
   const auto n = static_cast<uint16_t>(packet.payload.size());
-  std::vector<uint8_t> out = {kProcessCode, packet.status, packet.reserved, packet.function,
-                              static_cast<uint8_t>(n >> 8), static_cast<uint8_t>(n & 0xFF)};
+  std::vector<uint8_t> out = {kProcessCode,
+                              packet.status,
+                              packet.reserved,
+                              packet.function,
+                              static_cast<uint8_t>(n >> 8),
+                              static_cast<uint8_t>(n & 0xFF)};
   const uint16_t crc1 = crc16_ccitt(out.data(), 6);
   out.push_back(static_cast<uint8_t>(crc1 >> 8));
   out.push_back(static_cast<uint8_t>(crc1 & 0xFF));
@@ -135,9 +160,10 @@ Packet decode(const uint8_t* data, size_t size, const std::string& source) {
     case ParseResult::Kind::kError:
       throw ProtocolError(source, r.error);
     case ParseResult::Kind::kNeedMore:
-      throw ProtocolError(source, "truncated packet: " + std::to_string(size) + " bytes, expected " +
-                                      std::to_string(r.needed) +
-                                      (size >= kHeaderBytes ? " from its byte count" : " at least"));
+      throw ProtocolError(source,
+                          "truncated packet: " + std::to_string(size) + " bytes, expected " +
+                              std::to_string(r.needed) +
+                              (size >= kHeaderBytes ? " from its byte count" : " at least"));
     case ParseResult::Kind::kPacket:
       break;
   }

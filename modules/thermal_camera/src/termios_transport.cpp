@@ -1,10 +1,10 @@
-#include <cerrno>
-#include <cstring>
 #include <fcntl.h>
 #include <poll.h>
-#include <stdexcept>
 #include <termios.h>
 #include <unistd.h>
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/thermal_camera/serial_transport.hpp"
@@ -14,17 +14,26 @@ namespace {
 
 speed_t speed_for(int baud) {
   switch (baud) {
-    case 9600: return B9600;
-    case 19200: return B19200;
-    case 38400: return B38400;
-    case 57600: return B57600;
-    case 115200: return B115200;
-    case 230400: return B230400;
-    case 460800: return B460800;
-    case 921600: return B921600;
+    case 9600:
+      return B9600;
+    case 19200:
+      return B19200;
+    case 38400:
+      return B38400;
+    case 57600:
+      return B57600;
+    case 115200:
+      return B115200;
+    case 230400:
+      return B230400;
+    case 460800:
+      return B460800;
+    case 921600:
+      return B921600;
     default:
-      throw std::invalid_argument("baud = " + std::to_string(baud) +
-                                  ", expected 9600, 19200, 38400, 57600, 115200, 230400, 460800 or 921600");
+      throw std::invalid_argument(
+          "baud = " + std::to_string(baud) +
+          ", expected 9600, 19200, 38400, 57600, 115200, 230400, 460800 or 921600");
   }
 }
 

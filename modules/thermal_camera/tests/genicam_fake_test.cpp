@@ -74,9 +74,11 @@ TEST_F(GenicamFake, Streams200FramesWithNoneLost) {
   EXPECT_NEAR(camera.frame_rate_hz(), 100.0, 1e-6);
   std::vector<double> intervals_ms;
   for (size_t i = 1; i < frames.size(); ++i) {
-    intervals_ms.push_back((frames[i].device_timestamp_ns - frames[i - 1].device_timestamp_ns) * 1e-6);
+    intervals_ms.push_back((frames[i].device_timestamp_ns - frames[i - 1].device_timestamp_ns) *
+                           1e-6);
   }
-  std::nth_element(intervals_ms.begin(), intervals_ms.begin() + intervals_ms.size() / 2, intervals_ms.end());
+  std::nth_element(intervals_ms.begin(), intervals_ms.begin() + intervals_ms.size() / 2,
+                   intervals_ms.end());
   EXPECT_NEAR(intervals_ms[intervals_ms.size() / 2], 10.0, 2.0);
   EXPECT_GT(stats.frame_rate_hz, 0.0);
 }

@@ -3,8 +3,8 @@
 // The camera process is killed mid-stream and restarted to check that the driver reports
 // the loss and recovers. ctest runs these tests one at a time (RESOURCE_LOCK): the fake
 // camera needs UDP port 3956 on 127.0.0.1.
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -183,7 +183,8 @@ namespace fs = std::filesystem;
 
 pid_t spawn_recorder(const std::vector<std::string>& args, const fs::path& log) {
   const char* dir = std::getenv("RGBDT_BIN_DIR");
-  std::vector<std::string> all = {std::string(dir != nullptr ? dir : RGBDT_BINARY_DIR "/bin") + "/rgbdt_camera"};
+  std::vector<std::string> all = {std::string(dir != nullptr ? dir : RGBDT_BINARY_DIR "/bin") +
+                                  "/rgbdt_camera"};
   all.insert(all.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (auto& a : all) argv.push_back(a.data());
@@ -244,25 +245,30 @@ TEST(GenicamGige, RecorderKeepsWholeIndexedFramesAcrossACameraLoss) {
   fake.start();
   open_when_ready(fake.device_id(), fast_options());  // up and answering
 
-  const pid_t pid = spawn_recorder({"record", "--interfaces", "none", "--id", fake.device_id(), "--out",
-                                    out.string(), "--seconds", "120", "--pixel-format", "Mono16", "--roi",
-                                    "0,0,320,240", "--rate", "50", "--timeout-ms", "300", "--give-up", "60"},
-                                   log);
-  ASSERT_TRUE(wait_for([&] { return count_png(out) >= 20; }, std::chrono::seconds(20))) << slurp(log);
+  const pid_t pid =
+      spawn_recorder({"record", "--interfaces", "none", "--id", fake.device_id(), "--out",
+                      out.string(), "--seconds", "120", "--pixel-format", "Mono16", "--roi",
+                      "0,0,320,240", "--rate", "50", "--timeout-ms", "300", "--give-up", "60"},
+                     log);
+  ASSERT_TRUE(wait_for([&] { return count_png(out) >= 20; }, std::chrono::seconds(20)))
+      << slurp(log);
 
   fake.kill_now();
-  ASSERT_TRUE(wait_for([&] { return slurp(log).find("lost (") != std::string::npos; }, std::chrono::seconds(30)))
+  ASSERT_TRUE(wait_for([&] { return slurp(log).find("lost (") != std::string::npos; },
+                       std::chrono::seconds(30)))
       << slurp(log);
   // While the camera is away the recording on disk is already complete and indexed.
   const size_t frames_before = count_png(out);
   expect_whole_indexed_frames(out);
 
   fake.start();
-  ASSERT_TRUE(wait_for([&] { return count_png(out) >= frames_before + 20; }, std::chrono::seconds(40)))
+  ASSERT_TRUE(
+      wait_for([&] { return count_png(out) >= frames_before + 20; }, std::chrono::seconds(40)))
       << slurp(log);
   ::kill(pid, SIGINT);
   int status = 0;
-  ASSERT_TRUE(wait_for([&] { return ::waitpid(pid, &status, WNOHANG) == pid; }, std::chrono::seconds(20)));
+  ASSERT_TRUE(
+      wait_for([&] { return ::waitpid(pid, &status, WNOHANG) == pid; }, std::chrono::seconds(20)));
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << slurp(log);
   const std::string text = slurp(log);
   EXPECT_NE(text.find("reconnected"), std::string::npos) << text;

@@ -137,7 +137,6 @@ TEST(Radiometry, BadSpecsNameTheParameter) {
   expect_mentions(spec("linear", {{"kelvin_per_count", 0.04}, {"gain", 2}}),
                   "unknown parameter 'gain'");
   expect_mentions(spec("planck", {{"B", 1428}}), "missing parameter 'R'");
-  expect_mentions(spec("planck", {{"R", 366545}, {"B", 1428}, {"emissivity", 1.5}}),
-                  "emissivity");
+  expect_mentions(spec("planck", {{"R", 366545}, {"B", 1428}, {"emissivity", 1.5}}), "emissivity");
   EXPECT_THROW(Radiometry(typical_planck()).counts(-1.0), std::invalid_argument);
 }

@@ -17,8 +17,10 @@ TEST(Tau2FuzzCorpus, EveryKeptInputSatisfiesTheParserProperties) {
   for (const auto& entry : fs::directory_iterator(corpus)) {
     if (!entry.is_regular_file()) continue;
     std::ifstream f(entry.path(), std::ios::binary);
-    const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    const std::string broken = rgbdt::thermal_camera::fuzz::check_tau2_input(bytes.data(), bytes.size());
+    const std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(f)),
+                                     std::istreambuf_iterator<char>());
+    const std::string broken =
+        rgbdt::thermal_camera::fuzz::check_tau2_input(bytes.data(), bytes.size());
     EXPECT_TRUE(broken.empty()) << entry.path() << ": " << broken;
     ++inputs;
     packets += rgbdt::thermal_camera::tau2::parse(bytes.data(), bytes.size()).kind ==

@@ -26,7 +26,8 @@ TEST(Tau2Crc, MatchesTheCcittXmodemCheckValue) {
 TEST(Tau2Packet, EncodesTheFfcModeQueryAsTheIddShowsIt) {
   // 6E 00 00 0B 00 00 2F 4A 00 00: FFC_MODE_SELECT get, as printed in the Tau2 IDD.
   const auto bytes = encode({0, static_cast<uint8_t>(Function::kFfcModeSelect), {}});
-  const std::vector<uint8_t> expected = {0x6E, 0x00, 0x00, 0x0B, 0x00, 0x00, 0x2F, 0x4A, 0x00, 0x00};
+  const std::vector<uint8_t> expected = {0x6E, 0x00, 0x00, 0x0B, 0x00,
+                                         0x00, 0x2F, 0x4A, 0x00, 0x00};
   EXPECT_EQ(bytes, expected);
 }
 

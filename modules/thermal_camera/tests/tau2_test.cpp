@@ -53,7 +53,8 @@ TEST(Tau2, EveryCommandRoundTripsThroughTheEmulator) {
   EXPECT_EQ(camera.gain_mode(), Tau2GainMode::kAutomatic);
   camera.set_gain_mode(Tau2GainMode::kHighGain);
   EXPECT_EQ(camera.gain_mode(), Tau2GainMode::kHighGain);
-  EXPECT_EQ(pty.with_emulator([](Tau2Emulator& e) { return e.state().gain_mode; }), Tau2GainMode::kHighGain);
+  EXPECT_EQ(pty.with_emulator([](Tau2Emulator& e) { return e.state().gain_mode; }),
+            Tau2GainMode::kHighGain);
 
   EXPECT_FALSE(camera.tlinear_enabled());
   camera.set_tlinear_enabled(true);
@@ -87,7 +88,8 @@ TEST(Tau2, CameraErrorStatusIsReportedByName) {
               std::string::npos)
         << e.what();
   }
-  const std::string e = error_of<Tau2Error>([&] { camera.transact(static_cast<tau2::Function>(0x99)); });
+  const std::string e =
+      error_of<Tau2Error>([&] { camera.transact(static_cast<tau2::Function>(0x99)); });
   EXPECT_NE(e.find("CAM_UNDEFINED_FUNCTION_ERROR"), std::string::npos) << e;
   camera.no_op();  // the link is still in step afterwards
 }
@@ -96,7 +98,10 @@ TEST(Tau2, CorruptRepliesAreRejectedWithAClearError) {
   PtyTau2 pty;
   Tau2 camera = connect(pty, 300);
   const auto expect_rejected = [&](Tau2Emulator::Fault fault, const std::string& part) {
-    pty.with_emulator([&](Tau2Emulator& e) { e.inject_fault(fault); return 0; });
+    pty.with_emulator([&](Tau2Emulator& e) {
+      e.inject_fault(fault);
+      return 0;
+    });
     const std::string e = error_of<rgbdt::core::Error>([&] { camera.serial_numbers(); });
     EXPECT_NE(e.find(part), std::string::npos) << e;
     EXPECT_NE(e.find(pty.path()), std::string::npos) << "error does not name the port: " << e;
@@ -104,8 +109,10 @@ TEST(Tau2, CorruptRepliesAreRejectedWithAClearError) {
     EXPECT_EQ(camera.serial_numbers().camera, 123456u);
   };
   expect_rejected(Tau2Emulator::Fault::kBadHeaderCrc, "corrupt reply to SERIAL_NUMBER: header CRC");
-  expect_rejected(Tau2Emulator::Fault::kBadPayloadCrc, "corrupt reply to SERIAL_NUMBER: payload CRC");
-  expect_rejected(Tau2Emulator::Fault::kWrongByteCount, "truncated reply to SERIAL_NUMBER: 18 bytes, expected 20");
+  expect_rejected(Tau2Emulator::Fault::kBadPayloadCrc,
+                  "corrupt reply to SERIAL_NUMBER: payload CRC");
+  expect_rejected(Tau2Emulator::Fault::kWrongByteCount,
+                  "truncated reply to SERIAL_NUMBER: 18 bytes, expected 20");
   expect_rejected(Tau2Emulator::Fault::kTruncated, "truncated reply to SERIAL_NUMBER: 9 bytes");
   expect_rejected(Tau2Emulator::Fault::kNoReply, "no reply to SERIAL_NUMBER within 300 ms");
 }
@@ -131,7 +138,8 @@ TEST(Tau2, EmulatorRejectsCorruptCommandsLikeTheCamera) {
 TEST(Tau2, EmulatorAnswersPacketsSplitAndConcatenatedInMemory) {
   Tau2Emulator emulator;
   auto a = tau2::encode({0, static_cast<uint8_t>(tau2::Function::kNoOp), {}});
-  const auto b = tau2::encode({0, static_cast<uint8_t>(tau2::Function::kGainMode), tau2::words({1})});
+  const auto b =
+      tau2::encode({0, static_cast<uint8_t>(tau2::Function::kGainMode), tau2::words({1})});
   a.insert(a.end(), b.begin(), b.end());
   std::vector<uint8_t> out;
   for (uint8_t byte : a) {  // one byte at a time, as a slow UART delivers them
@@ -141,14 +149,16 @@ TEST(Tau2, EmulatorAnswersPacketsSplitAndConcatenatedInMemory) {
   const auto first = tau2::parse(out.data(), out.size());
   ASSERT_EQ(first.kind, tau2::ParseResult::Kind::kPacket);
   EXPECT_EQ(first.packet.function, 0x00);
-  const tau2::Packet second = tau2::decode(out.data() + first.consumed, out.size() - first.consumed);
+  const tau2::Packet second =
+      tau2::decode(out.data() + first.consumed, out.size() - first.consumed);
   EXPECT_EQ(second.function, 0x0A);
   EXPECT_EQ(second.payload, tau2::words({1}));
   EXPECT_EQ(emulator.state().gain_mode, Tau2GainMode::kLowGain);
 }
 
 TEST(Tau2, TransportErrorsNameTheDevice) {
-  const std::string e = error_of<rgbdt::core::Error>([] { TermiosTransport t("/dev/no-such-tau2"); });
+  const std::string e =
+      error_of<rgbdt::core::Error>([] { TermiosTransport t("/dev/no-such-tau2"); });
   EXPECT_NE(e.find("/dev/no-such-tau2"), std::string::npos) << e;
   EXPECT_THROW(TermiosTransport("/dev/null", 12345), std::invalid_argument);
   EXPECT_THROW(Tau2(nullptr), std::invalid_argument);

@@ -17,10 +17,10 @@
 namespace rgbdt::thermal_camera {
 
 struct FrameRecorderOptions {
-  std::string out_dir;          ///< created if missing; must not already hold an index.csv
-  bool demosaic_bayer = true;   ///< Bayer frames: write BGR (true) or the raw mosaic (false)
+  std::string out_dir;         ///< created if missing; must not already hold an index.csv
+  bool demosaic_bayer = true;  ///< Bayer frames: write BGR (true) or the raw mosaic (false)
   /// 0..9. 640x512 16-bit frames per CPU-second (thermal_camera_bench): ~140 at 0, ~70 at
-  /// 1, ~45 at 3, ~15 at 6; 1 keeps a 25-30 fps thermal + RGB rig real time on one core.
+  /// 1, ~45 at 3, ~15 at 6 (loaded 2-core host); 1 keeps up with a Tau2 at 30 fps.
   int png_compression = 1;
   /// index.csv is rewritten (atomically) at most this often, and on flush/destruction.
   double index_flush_interval_s = 1.0;

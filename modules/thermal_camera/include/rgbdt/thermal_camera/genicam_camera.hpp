@@ -20,12 +20,12 @@ namespace rgbdt::thermal_camera {
 
 /// One camera as Aravis enumerates it.
 struct DeviceInfo {
-  std::string id;           ///< what GenicamCamera takes, e.g. "Fake_1", "Aravis-Fake-GV01"
-  std::string protocol;     ///< "GigEVision", "USB3Vision", "Fake"
+  std::string id;        ///< what GenicamCamera takes, e.g. "Fake_1", "Aravis-Fake-GV01"
+  std::string protocol;  ///< "GigEVision", "USB3Vision", "Fake"
   std::string vendor;
   std::string model;
   std::string serial;
-  std::string address;      ///< IP address for GigE, empty otherwise
+  std::string address;  ///< IP address for GigE, empty otherwise
 };
 
 /// Which Aravis transport interfaces list_devices() and GenicamCamera search. Process-wide
@@ -70,9 +70,9 @@ struct GenicamOptions {
 
 /// One image with its time stamps. The image owns its pixels (copied out of the pool).
 struct Frame {
-  cv::Mat image;               ///< CV_8UC1 (Mono8, Bayer*) or CV_16UC1 (Mono16)
-  std::string pixel_format;    ///< GenICam name, e.g. "Mono16"
-  uint64_t frame_id = 0;       ///< device frame counter (16-bit and wrapping on GigE v1)
+  cv::Mat image;                     ///< CV_8UC1 (Mono8, Bayer*) or CV_16UC1 (Mono16)
+  std::string pixel_format;          ///< GenICam name, e.g. "Mono16"
+  uint64_t frame_id = 0;             ///< device frame counter (16-bit and wrapping on GigE v1)
   uint64_t device_timestamp_ns = 0;  ///< camera clock [ns]; 0 if the device gives none
   uint64_t host_timestamp_ns = 0;    ///< host wall clock at reception [ns since epoch]
 };
@@ -112,9 +112,9 @@ class GenicamCamera {
   /// Opens the device and applies the options. `device_id` is an Aravis id as listed by
   /// list_devices() ("Fake_1", "<vendor>-<serial>", a MAC address) or the IPv4 address
   /// of a GigE camera: an address is opened directly from the local interface on its
-  /// subnet, without broadcast discovery (and 127.0.0.1 keeps all traffic on loopback). Throws std::invalid_argument for invalid
-  /// options and rgbdt::core::Error (naming the device and the feature) when the device
-  /// cannot be opened or refuses a setting.
+  /// subnet, without broadcast discovery (and 127.0.0.1 keeps all traffic on loopback). Throws
+  /// std::invalid_argument for invalid options and rgbdt::core::Error (naming the device and the
+  /// feature) when the device cannot be opened or refuses a setting.
   explicit GenicamCamera(const std::string& device_id, const GenicamOptions& options = {});
   ~GenicamCamera();
   GenicamCamera(const GenicamCamera&) = delete;

@@ -37,12 +37,12 @@ struct LinearRadiometry {
 
 /// Parameters of the Planck model, Eqs. (1)-(3) above.
 struct PlanckRadiometry {
-  double R = 0.0;              ///< Planck R (R1 / R2 in FLIR metadata) [counts]
-  double B = 0.0;              ///< Planck B [K]
-  double F = 1.0;              ///< Planck F [-]
-  double O = 0.0;              ///< Planck O, signal offset [counts]
-  double emissivity = 1.0;     ///< object emissivity, (0, 1]
-  double reflected_k = 293.15; ///< apparent reflected temperature [K]
+  double R = 0.0;               ///< Planck R (R1 / R2 in FLIR metadata) [counts]
+  double B = 0.0;               ///< Planck B [K]
+  double F = 1.0;               ///< Planck F [-]
+  double O = 0.0;               ///< Planck O, signal offset [counts]
+  double emissivity = 1.0;      ///< object emissivity, (0, 1]
+  double reflected_k = 293.15;  ///< apparent reflected temperature [K]
   std::string validate() const;
 };
 

@@ -27,7 +27,7 @@
 namespace rgbdt::thermal_camera::tau2 {
 
 constexpr uint8_t kProcessCode = 0x6E;
-constexpr size_t kHeaderBytes = 8;   ///< bytes 0-7, CRC1 included
+constexpr size_t kHeaderBytes = 8;  ///< bytes 0-7, CRC1 included
 constexpr size_t kMinPacketBytes = kHeaderBytes + 2;
 /// Largest payload accepted. The IDD's longest transfers (READ_MEMORY) carry 256 bytes;
 /// anything much longer is a corrupt byte count, not a packet worth waiting for.
@@ -51,7 +51,7 @@ enum class Function : uint8_t {
 /// TLIN_COMMANDS (0x8E) first argument word. Get: 2-byte payload (sub-command), reply one
 /// word; set: 4-byte payload (sub-command, value). Radiometric Tau2 cores only.
 enum class TlinSubcommand : uint16_t {
-  kResolution = 0x0010,  ///< value 0: low resolution (0.4 K/count), 1: high (0.04 K/count)
+  kResolution = 0x0010,    ///< value 0: low resolution (0.4 K/count), 1: high (0.04 K/count)
   kOutputEnable = 0x0040,  ///< value 0: raw counts, 1: TLinear temperatures
 };
 
@@ -77,8 +77,8 @@ std::string function_name(uint8_t function);
 uint16_t crc16_ccitt(const uint8_t* data, size_t size, uint16_t crc = 0);
 
 struct Packet {
-  uint8_t status = 0;      ///< Status for replies; 0 for commands
-  uint8_t function = 0;    ///< Function code
+  uint8_t status = 0;    ///< Status for replies; 0 for commands
+  uint8_t function = 0;  ///< Function code
   std::vector<uint8_t> payload;
   /// Byte 2. Sent as 0; kept as received because it is covered by the header CRC, so that
   /// encode(parse(bytes)) reproduces the bytes exactly (found by fuzzing).
@@ -105,7 +105,7 @@ struct ParseResult {
   };
   Kind kind = Kind::kNeedMore;
   Packet packet;
-  size_t consumed = 0;  ///< bytes of the packet (kPacket)
+  size_t consumed = 0;              ///< bytes of the packet (kPacket)
   size_t needed = kMinPacketBytes;  ///< total bytes required (kNeedMore)
   std::string error;
 };
