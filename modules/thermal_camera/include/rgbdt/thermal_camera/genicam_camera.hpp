@@ -116,6 +116,7 @@ class GenicamCamera {
   /// std::invalid_argument for invalid options and rgbdt::core::Error (naming the device and the
   /// feature) when the device cannot be opened or refuses a setting.
   explicit GenicamCamera(const std::string& device_id, const GenicamOptions& options = {});
+  /// May wait for a lost device's background release (Aravis's protocol timeouts, a few s).
   ~GenicamCamera();
   GenicamCamera(const GenicamCamera&) = delete;
   GenicamCamera& operator=(const GenicamCamera&) = delete;
@@ -136,6 +137,14 @@ class GenicamCamera {
 
   /// Waits for the next frame (at most timeout_ms, plus one reopen attempt when the
   /// device is lost). Never throws for device trouble: that is reported in the status.
+  /// Throws std::logic_error when called before start().
+  ///
+  /// Losing a device: after timeouts_before_reconnect empty waits the device is probed
+  /// with a register read; if that fails (GigE: after Aravis's GVCP retries, ~5 s) or the
+  /// control channel's heartbeat was lost, kDisconnected is returned, the old handle is
+  /// released in the background, and later calls try to reopen it every
+  /// reconnect_interval_ms until kReconnected. frames_lost counts counter gaps within a
+  /// connection; frames the device never sent while it was away are not counted.
   GrabResult grab();
 
   StreamStatistics statistics() const;
