@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <stdexcept>
@@ -70,7 +71,9 @@ Plane fit_plane_least_squares(const std::vector<Eigen::Vector3d>& points) {
   return Plane{eig.eigenvectors().col(0), centroid};  // smallest spread = normal
 }
 
-Plane ransac_plane(const std::vector<Eigen::Vector3d>& points, double tolerance_m, int iterations, unsigned seed) {
+/// The plane with most inliers, refined by least squares; none if all samples are degenerate.
+std::optional<Plane> ransac_plane(const std::vector<Eigen::Vector3d>& points, double tolerance_m, int iterations,
+                                  unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
   Plane best;
@@ -89,7 +92,7 @@ Plane ransac_plane(const std::vector<Eigen::Vector3d>& points, double tolerance_
       best = plane;
     }
   }
-  if (best_inliers < 3) throw core::Error("measure_card_band", "no plane found among the bright points");
+  if (best_inliers < 3) return std::nullopt;
   std::vector<Eigen::Vector3d> inliers;
   for (const auto& p : points) {
     if (std::abs(best.distance(p)) <= tolerance_m) inliers.push_back(p);
@@ -152,25 +155,40 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
   }
   CardBandMeasurement m;
   m.intensity_threshold = otsu_threshold(intensities);
-  std::vector<Eigen::Vector3d> bright;
+  std::vector<Eigen::Vector3d> bright, dark;
   for (std::size_t i = 0; i < points_lidar.size(); ++i) {
-    if (std::isfinite(intensities[i])) {
-      ++m.coloured_points;
-      if (intensities[i] > m.intensity_threshold) bright.push_back(points_lidar[i]);
+    if (!std::isfinite(intensities[i])) continue;
+    ++m.coloured_points;
+    (intensities[i] > m.intensity_threshold ? bright : dark).push_back(points_lidar[i]);
+  }
+  // The card is the nearer of the upright planes of the two colour classes: white before a
+  // black cloth in RGB, but in a thermal image it may be the darker (colder) one.
+  std::optional<Plane> card_plane;
+  for (const bool bright_class : {true, false}) {
+    const auto& set = bright_class ? bright : dark;
+    if (set.size() < 20) continue;
+    std::optional<Plane> fitted = ransac_plane(set, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations, options.seed);
+    if (!fitted) continue;
+    Plane candidate = *fitted;
+    if (std::abs(candidate.normal.z()) > 0.7) continue;  // floor or ceiling, not a card
+    if (candidate.normal.dot(candidate.point) > 0.0) candidate.normal = -candidate.normal;
+    if (!card_plane || std::abs(candidate.normal.dot(candidate.point)) <
+                           std::abs(card_plane->normal.dot(card_plane->point))) {
+      card_plane = candidate;
+      m.card_is_bright = bright_class;
     }
   }
-  if (bright.size() < 20) {
+  if (!card_plane) {
     std::ostringstream os;
-    os << "only " << bright.size() << " bright points of " << m.coloured_points
-       << " coloured ones: expected a white card in view of the camera";
+    os << "no upright plane in either colour class (" << bright.size() << " bright, " << dark.size()
+       << " dark points of " << points_lidar.size() << "): expected a card before a cloth in view of the camera";
     throw core::Error("measure_card_band", os.str());
   }
+  const Plane plane = *card_plane;
+  auto card_colour = [&](double intensity) { return (intensity > m.intensity_threshold) == m.card_is_bright; };
 
-  // Card plane, its normal towards the LIDAR, and card axes (x right, y up seen from it).
-  Plane plane = ransac_plane(bright, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations, options.seed);
-  if (plane.normal.dot(plane.point) > 0.0) plane.normal = -plane.normal;
+  // Card axes: x right and y up as seen from the LIDAR.
   Eigen::Vector3d x_axis = Eigen::Vector3d::UnitZ().cross(plane.normal);
-  if (x_axis.norm() < 1e-6) throw core::Error("measure_card_band", "card plane is horizontal: expected an upright card");
   x_axis.normalize();
   const Eigen::Vector3d y_axis = plane.normal.cross(x_axis);
 
@@ -195,12 +213,12 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
   // on the plane, widened by the strip so that mis-coloured card points are included).
   std::vector<double> bx, by;
   for (std::size_t i = 0; i < n; ++i) {
-    if (geometry[i] == 1 && std::isfinite(intensities[i]) && intensities[i] > m.intensity_threshold) {
+    if (geometry[i] == 1 && std::isfinite(intensities[i]) && card_colour(intensities[i])) {
       bx.push_back(xy[i].x());
       by.push_back(xy[i].y());
     }
   }
-  if (bx.size() < 20) throw core::Error("measure_card_band", "fewer than 20 bright points lie on the card plane");
+  if (bx.size() < 20) throw core::Error("measure_card_band", "fewer than 20 card-coloured points lie on the card plane");
   const double roi_x0 = quantile(bx, 0.005) - options.edge_strip_m, roi_x1 = quantile(bx, 0.995) + options.edge_strip_m;
   const double roi_y0 = quantile(by, 0.005) - options.edge_strip_m, roi_y1 = quantile(by, 0.995) + options.edge_strip_m;
   auto in_roi = [&](const Eigen::Vector2d& v) {
@@ -290,9 +308,9 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
       const double a = xy[i][along], c = xy[i][spec.across];
       if (a < lo || a > hi || std::abs(c - spec.at) > options.edge_strip_m) continue;
       ++band.strip_points;
-      const bool bright_colour = intensities[i] > m.intensity_threshold;
-      if (geometry[i] == 1 && !bright_colour) ++inward;
-      if (geometry[i] == -1 && bright_colour) ++outward;
+      const bool looks_like_card = card_colour(intensities[i]);
+      if (geometry[i] == 1 && !looks_like_card) ++inward;
+      if (geometry[i] == -1 && looks_like_card) ++outward;
     }
     band.miscoloured_points = inward + outward;
     const double per_metre = m.density_per_m2 * band.length_m;

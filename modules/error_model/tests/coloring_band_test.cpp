@@ -23,6 +23,7 @@ struct Scene {
   Eigen::Vector3d card_u, card_v;  // unit edge directions (right, up)
   double half_w = 0.6, half_h = 0.45;
   double gap_m = 0.3;
+  float card_colour = kWhite, cloth_colour = kBlack;
 
   explicit Scene(double depth) : depth_m(depth), card_centre(depth, 0.15, 0.1) {
     const double roll = 4.0 * kDeg;
@@ -37,14 +38,14 @@ struct Scene {
     const Eigen::Vector3d d = c - card_centre;
     if (std::abs(d.dot(card_u)) <= half_w && std::abs(d.dot(card_v)) <= half_h) {
       *hit = c;
-      *colour = kWhite;
+      *colour = card_colour;
       return true;
     }
     const double s_cloth = (depth_m + gap_m - origin.x()) / dir.x();
     const Eigen::Vector3d b = origin + s_cloth * dir;
     if (std::abs(b.y() - card_centre.y()) > 2.5 || std::abs(b.z() - card_centre.z()) > 2.0) return false;
     *hit = b;
-    *colour = kBlack;
+    *colour = cloth_colour;
     return true;
   }
 };
@@ -161,6 +162,29 @@ TEST(ColoringBand, MeasuredBandMatchesTheColourOffsetOfAWrongExtrinsic) {
   }
 }
 
+TEST(ColoringBand, FindsACardThatIsDarkerThanTheCloth) {
+  // In a thermal image the card may be colder than the cloth: same geometry, colours swapped.
+  const core::PinholeCamera camera = rgb_camera();
+  const Eigen::Isometry3d T_true = true_T_camera_lidar();
+  core::Vector6d dv;
+  dv << -0.2 * kDeg, 0.3 * kDeg, 0.0, 0.0, 0.01, 0.0;
+  const Eigen::Isometry3d T_est = core::from_vector6(dv) * T_true;
+  Scene scene(7.5);
+  scene.card_colour = 60.0f;
+  scene.cloth_colour = 180.0f;
+  const GrayImage image = render(scene, camera, T_true);
+  const auto points = scan(scene, 5);
+  const CardBandMeasurement m = measure_card_band(points, sample_point_intensities(points, camera, T_est, image));
+  EXPECT_FALSE(m.card_is_bright);
+  EXPECT_NEAR(m.card_range_m, scene.card_centre.norm(), 0.05);
+  const Eigen::Vector3d offset =
+      colour_source_offset(scene.card_centre, -Eigen::Vector3d::UnitX(), camera, T_true, camera, T_est);
+  // Same tolerance as above: 0.2 point spacing + half a pixel.
+  const double half_pixel = 0.5 * 7.5 / camera.intrinsics().fx;
+  EXPECT_NEAR(m.band_x_m, std::abs(offset.dot(scene.card_u)), 0.2 * 7.5 * 0.25 * kDeg + half_pixel);
+  EXPECT_NEAR(m.band_y_m, std::abs(offset.dot(scene.card_v)), 0.2 * 7.5 * 0.2 * kDeg + half_pixel);
+}
+
 TEST(ColoringBand, ColourSourceOffsetIsZeroForTheTrueCalibrationAndGrowsWithRotationError) {
   const core::PinholeCamera camera = rgb_camera();
   const Eigen::Isometry3d T = true_T_camera_lidar();
@@ -184,7 +208,7 @@ TEST(ColoringBand, RejectsBadInputWithTheReason) {
     measure_card_band(std::vector<Eigen::Vector3d>(50, Eigen::Vector3d(5, 0, 0)), std::vector<double>(50, 10.0));
     FAIL() << "no exception";
   } catch (const core::Error& e) {
-    EXPECT_NE(std::string(e.what()).find("white card"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("expected a card before a cloth"), std::string::npos) << e.what();
   }
   CardBandOptions bad;
   bad.edge_strip_m = -1.0;

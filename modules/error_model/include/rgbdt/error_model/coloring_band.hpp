@@ -8,9 +8,10 @@
 /// Measurement (measure_card_band):
 ///  1. colour class of every point: bright or dark, split at the Otsu threshold of the
 ///     sampled intensities;
-///  2. card plane: RANSAC + least squares on the bright points (the card is the brightest
-///     object); geometric class: card = within card_plane_tolerance_m of that plane and in
-///     front of nothing, background = further behind it;
+///  2. card plane: RANSAC + least squares on the points of each colour class; the card is
+///     the nearer upright plane (white before black in RGB; in a thermal image the card may be
+///     the darker one). Geometric class: card = within card_plane_tolerance_m of that plane,
+///     background = further behind it;
 ///  3. every point is moved along its LIDAR ray onto the card plane (so card and cloth points
 ///     have the same density there) and expressed in card coordinates: x to the right and
 ///     y up as seen from the LIDAR, origin at the card's centre;
@@ -81,6 +82,7 @@ struct CardBandMeasurement {
   double card_range_m = 0.0;  ///< distance from the LIDAR origin to the card centre [m]
   double density_per_m2 = 0.0;  ///< card points per square metre of card
   double intensity_threshold = 0.0;  ///< Otsu split between dark and bright
+  bool card_is_bright = true;        ///< the card's colour class (thermal: may be dark)
   int card_points = 0, background_points = 0, coloured_points = 0;
   std::array<EdgeBand, 4> edges;  ///< left, right, bottom, top
   double band_x_m = 0.0;  ///< mean band of the left and right edges (Table 2's x) [m]
@@ -89,7 +91,8 @@ struct CardBandMeasurement {
 
 /// Measures the mis-coloured band. `intensities` has one value per point (NaN = not
 /// coloured). Throws std::invalid_argument on size mismatch or invalid options, and
-/// rgbdt::core::Error when no card can be found (too few bright points, no plane).
+/// rgbdt::core::Error when no card can be found (no upright plane in either colour class,
+/// too few points on it).
 CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points_lidar,
                                       const std::vector<double>& intensities,
                                       const CardBandOptions& options = {});
