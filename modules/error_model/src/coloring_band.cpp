@@ -224,6 +224,33 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
   auto in_roi = [&](const Eigen::Vector2d& v) {
     return v.x() >= roi_x0 && v.x() <= roi_x1 && v.y() >= roi_y0 && v.y() <= roi_y1;
   };
+  // Background: the plane behind the card (the cloth). Points between the two planes are
+  // LIDAR mixed pixels (a beam straddling the card edge returns a range in between); they are
+  // neither card nor cloth and are left out rather than counted as mis-coloured background.
+  {
+    std::vector<Eigen::Vector3d> behind;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (geometry[i] == -1 && in_roi(xy[i])) behind.push_back(points_lidar[i]);
+    }
+    std::optional<Plane> cloth;
+    if (behind.size() >= 20) {
+      cloth = ransac_plane(behind, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations, options.seed + 1);
+    }
+    std::size_t on_cloth = 0;
+    if (cloth) {
+      for (const auto& p : behind) on_cloth += std::abs(cloth->distance(p)) <= options.card_plane_tolerance_m;
+    }
+    // Use the cloth plane only if it explains most of the background (a planar cloth).
+    if (cloth && on_cloth >= behind.size() / 2) {
+      for (std::size_t i = 0; i < n; ++i) {
+        if (geometry[i] == -1 && std::abs(cloth->distance(points_lidar[i])) > options.card_plane_tolerance_m) {
+          geometry[i] = 0;
+          m.mixed_points += in_roi(xy[i]);
+        }
+      }
+    }
+  }
+
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
   for (std::size_t i = 0; i < n; ++i) {
     if (geometry[i] != 1 || !in_roi(xy[i])) continue;

@@ -97,8 +97,9 @@ GrayImage render(const Scene& scene, const core::PinholeCamera& camera, const Ei
 }
 
 /// A tilting scan of the scene: 0.25 deg beams (UTM-30LX), 0.2 deg between scan lines,
-/// 1 cm range noise.
-std::vector<Eigen::Vector3d> scan(const Scene& scene, unsigned seed) {
+/// 1 cm range noise. With mixed_pixels, a beam whose next beam hits the other surface returns
+/// a range somewhere in between (what a UTM-30LX does at depth edges).
+std::vector<Eigen::Vector3d> scan(const Scene& scene, unsigned seed, bool mixed_pixels = false) {
   std::vector<Eigen::Vector3d> points;
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 0.01);
@@ -112,6 +113,17 @@ std::vector<Eigen::Vector3d> scan(const Scene& scene, unsigned seed) {
       Eigen::Vector3d hit;
       float colour;
       if (!scene.cast(Eigen::Vector3d::Zero(), dir, &hit, &colour)) continue;
+      if (mixed_pixels) {
+        const double next = yaw + 0.25 * kDeg;
+        const Eigen::Vector3d dir2(std::cos(pitch) * std::cos(next), std::cos(pitch) * std::sin(next), std::sin(pitch));
+        Eigen::Vector3d hit2;
+        float colour2;
+        if (scene.cast(Eigen::Vector3d::Zero(), dir2, &hit2, &colour2) && colour2 != colour) {
+          const double r1 = hit.norm(), r2 = hit2.norm();
+          points.push_back(dir * (r1 + std::uniform_real_distribution<double>(0.1, 0.9)(rng) * (r2 - r1)));
+          continue;
+        }
+      }
       points.push_back(hit + noise(rng) * dir);
     }
   }
@@ -160,6 +172,26 @@ TEST(ColoringBand, MeasuredBandMatchesTheColourOffsetOfAWrongExtrinsic) {
     EXPECT_NEAR(m.band_y_m, expected_y, 0.2 * spacing_y + half_pixel) << "depth " << depth;
     EXPECT_GT(expected_x, 0.02);  // the case is not trivially small
   }
+}
+
+TEST(ColoringBand, IgnoresMixedPixelsBetweenCardAndCloth) {
+  const core::PinholeCamera camera = rgb_camera();
+  const Eigen::Isometry3d T_true = true_T_camera_lidar();
+  core::Vector6d dv;
+  dv << 0.3 * kDeg, 0.25 * kDeg, 0.1 * kDeg, 0.01, 0.0, 0.0;
+  const Eigen::Isometry3d T_est = core::from_vector6(dv) * T_true;
+  Scene scene(10.0);
+  scene.gap_m = 1.2;  // as in rgbdt_sim's setups
+  const GrayImage image = render(scene, camera, T_true);
+  const auto points = scan(scene, 9, /*mixed_pixels=*/true);
+  const CardBandMeasurement m = measure_card_band(points, sample_point_intensities(points, camera, T_est, image));
+  EXPECT_GT(m.mixed_points, 20);
+  const Eigen::Vector3d offset =
+      colour_source_offset(scene.card_centre, -Eigen::Vector3d::UnitX(), camera, T_true, camera, T_est);
+  // Tolerance as above; a mixed pixel that were counted would add a whole beam spacing.
+  const double half_pixel = 0.5 * 10.0 / camera.intrinsics().fx;
+  EXPECT_NEAR(m.band_x_m, std::abs(offset.dot(scene.card_u)), 0.2 * 10.0 * 0.25 * kDeg + half_pixel);
+  EXPECT_NEAR(m.band_y_m, std::abs(offset.dot(scene.card_v)), 0.2 * 10.0 * 0.2 * kDeg + half_pixel);
 }
 
 TEST(ColoringBand, FindsACardThatIsDarkerThanTheCloth) {

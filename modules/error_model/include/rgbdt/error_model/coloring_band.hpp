@@ -11,7 +11,8 @@
 ///  2. card plane: RANSAC + least squares on the points of each colour class; the card is
 ///     the nearer upright plane (white before black in RGB; in a thermal image the card may be
 ///     the darker one). Geometric class: card = within card_plane_tolerance_m of that plane,
-///     background = further behind it;
+///     background = on the plane behind it (the cloth, when planar; else anything behind).
+///     Points in between are LIDAR mixed pixels at the card's edges and are ignored;
 ///  3. every point is moved along its LIDAR ray onto the card plane (so card and cloth points
 ///     have the same density there) and expressed in card coordinates: x to the right and
 ///     y up as seen from the LIDAR, origin at the card's centre;
@@ -84,6 +85,7 @@ struct CardBandMeasurement {
   double intensity_threshold = 0.0;  ///< Otsu split between dark and bright
   bool card_is_bright = true;        ///< the card's colour class (thermal: may be dark)
   int card_points = 0, background_points = 0, coloured_points = 0;
+  int mixed_points = 0;  ///< points between card and cloth (LIDAR mixed pixels), ignored
   std::array<EdgeBand, 4> edges;  ///< left, right, bottom, top
   double band_x_m = 0.0;  ///< mean band of the left and right edges (Table 2's x) [m]
   double band_y_m = 0.0;  ///< mean band of the bottom and top edges (Table 2's y) [m]
