@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "report.hpp"
+#include "setup.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
@@ -30,7 +31,7 @@ struct Options {
   double fx = 0.0, lidar_noise_m = 0.02, fx_error = 0.0, x_m = 5.0;
   bool json = false;
   // Report mode.
-  std::string calib, intrinsics, report, camera, rig;
+  std::string calib, intrinsics, report, camera, rig, setup;
   std::vector<double> intrinsics_sigma, rotation_sigma_deg, translation_sigma_m, pixel;
   double beam_sigma_deg = 0.0, tilt_sigma_deg = 0.025;
   double depth_min = 1.0, depth_max = 20.0, depth_step = 1.0;
@@ -176,10 +177,17 @@ int main(int argc, char** argv) {
       "          predicted colouring error vs depth (first-order propagation of LIDAR noise, intrinsics\n"
       "          and extrinsics covariance), per source, as OUT_DIR/coloring_error_<camera>.md + .png.\n"
       "          DIR holds extrinsics_<camera>.yaml (rgbdt_calibrate); the one whose parent_frame is the\n"
-      "          intrinsics' camera_name is used, or extrinsics_<NAME>.yaml with --camera NAME.\n\n"
+      "          intrinsics' camera_name is used, or extrinsics_<NAME>.yaml with --camera NAME.\n"
+      "  setup   --setup SESSION --calib DIR [--camera NAME] [--report OUT_DIR]\n"
+      "          the coloring-error setup of Sec. 4.4 (white card before a black cloth at several depths,\n"
+      "          e.g. from 'rgbdt_sim coloring-setup'): colours each cloud with DIR's extrinsics, measures\n"
+      "          the mis-coloured band along the card edges in x and y and prints Table 2 (RGB) / Table 3\n"
+      "          (thermal) with the model's predicted band, the paper's figures and, when the session has\n"
+      "          true_calib/, the band the calibration error should cause.\n\n"
       "Examples:\n"
       "  rgbdt_coloring_error --fx 1335.054 --lidar-noise 0.02 --fx-error 2 --json\n"
-      "  rgbdt_coloring_error --calib calib/ --intrinsics rgb.yaml --report out/ --intrinsics-sigma 2 2 1.5 1.5\n"};
+      "  rgbdt_coloring_error --calib calib/ --intrinsics rgb.yaml --report out/ --intrinsics-sigma 2 2 1.5 1.5\n"
+      "  rgbdt_coloring_error --setup coloring_session/ --calib calib/\n"};
   Options o;
   auto* fx = app.add_option("--fx", o.fx, "paper mode: focal length fx [px]");
   auto* noise = app.add_option("--lidar-noise", o.lidar_noise_m, "LIDAR range noise dz [m], 1 sigma (default 0.02)");
@@ -188,7 +196,8 @@ int main(int argc, char** argv) {
   app.add_flag("--json", o.json, "paper mode: print JSON");
   auto* calib = app.add_option("--calib", o.calib, "report mode: calibration folder with extrinsics_<camera>.yaml");
   auto* intrinsics = app.add_option("--intrinsics", o.intrinsics, "report mode: ROS camera_info YAML of the camera");
-  auto* report = app.add_option("--report", o.report, "report mode: output folder for the .md and .png");
+  auto* report = app.add_option("--report", o.report, "report/setup mode: output folder for the .md (and .png)");
+  auto* setup = app.add_option("--setup", o.setup, "setup mode: session folder (or its session.yaml) of the Sec. 4.4 setup");
   app.add_option("--camera", o.camera, "camera name: use extrinsics_<NAME>.yaml");
   app.add_option("--intrinsics-sigma", o.intrinsics_sigma,
                  "std devs of fx fy cx cy [px] and optionally the distortion coefficients "
@@ -213,12 +222,26 @@ int main(int argc, char** argv) {
   core::set_log_sink(core::stderr_log_sink);
   try {
     const bool paper = fx->count() > 0;
-    const bool report_mode = calib->count() > 0 || intrinsics->count() > 0 || report->count() > 0;
-    if (paper == report_mode) {
-      std::cerr << "error: choose one mode: --fx (paper) or --calib/--intrinsics/--report (report); see --help\n";
+    const bool setup_mode = setup->count() > 0;
+    const bool report_mode = !setup_mode && (calib->count() > 0 || intrinsics->count() > 0 || report->count() > 0);
+    if (static_cast<int>(paper) + static_cast<int>(setup_mode) + static_cast<int>(report_mode) != 1) {
+      std::cerr << "error: choose one mode: --fx (paper), --calib/--intrinsics/--report (report) or --setup; see --help\n";
       return 2;
     }
     if (paper) return run_paper(o, fx_error->count() > 0);
+    if (setup_mode) {
+      if (calib->count() == 0) {
+        std::cerr << "error: --setup needs --calib DIR with extrinsics_<camera>.yaml; see --help\n";
+        return 2;
+      }
+      apps::SetupSettings settings;
+      settings.calib_dir = o.calib;
+      settings.camera = o.camera;
+      settings.intrinsics_sigma = o.intrinsics_sigma;
+      settings.lidar_noise_m = o.lidar_noise_m;
+      settings.report_dir = o.report;
+      return apps::run_setup(apps::read_setup_session(o.setup), settings);
+    }
     if (calib->count() == 0 || intrinsics->count() == 0 || report->count() == 0) {
       std::cerr << "error: report mode needs --calib, --intrinsics and --report; see --help\n";
       return 2;
