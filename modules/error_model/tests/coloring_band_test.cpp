@@ -8,127 +8,12 @@
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/transform.hpp"
+#include "card_scene.hpp"
 
 namespace rgbdt::error_model {
 namespace {
 
-constexpr double kDeg = M_PI / 180.0;
-constexpr float kWhite = 220.0f, kBlack = 20.0f;
-
-/// The Sec. 4.4 scene in the LIDAR frame (x forward, z up): a white card facing the LIDAR,
-/// rolled a few degrees as a hand-placed card is, and a black cloth 0.3 m behind it.
-struct Scene {
-  double depth_m = 5.0;
-  Eigen::Vector3d card_centre;
-  Eigen::Vector3d card_u, card_v;  // unit edge directions (right, up)
-  double half_w = 0.6, half_h = 0.45;
-  double gap_m = 0.3;
-  float card_colour = kWhite, cloth_colour = kBlack;
-
-  explicit Scene(double depth) : depth_m(depth), card_centre(depth, 0.15, 0.1) {
-    const double roll = 4.0 * kDeg;
-    card_u = Eigen::Vector3d(0.0, -std::cos(roll), std::sin(roll));
-    card_v = Eigen::Vector3d(0.0, std::sin(roll), std::cos(roll));
-  }
-  /// Colour seen along the ray origin + s dir (first hit), or nothing (false).
-  bool cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Eigen::Vector3d* hit, float* colour) const {
-    if (dir.x() <= 0.0) return false;
-    const double s_card = (depth_m - origin.x()) / dir.x();
-    const Eigen::Vector3d c = origin + s_card * dir;
-    const Eigen::Vector3d d = c - card_centre;
-    if (std::abs(d.dot(card_u)) <= half_w && std::abs(d.dot(card_v)) <= half_h) {
-      *hit = c;
-      *colour = card_colour;
-      return true;
-    }
-    const double s_cloth = (depth_m + gap_m - origin.x()) / dir.x();
-    const Eigen::Vector3d b = origin + s_cloth * dir;
-    if (std::abs(b.y() - card_centre.y()) > 2.5 || std::abs(b.z() - card_centre.z()) > 2.0) return false;
-    *hit = b;
-    *colour = cloth_colour;
-    return true;
-  }
-};
-
-core::PinholeCamera rgb_camera() {
-  core::CameraIntrinsics k;
-  k.camera_name = "rgb";
-  k.width = 1288;
-  k.height = 964;
-  k.fx = 1335.054;
-  k.fy = 1333.2;
-  k.cx = 640.5;
-  k.cy = 478.9;
-  k.model = core::DistortionModel::kPlumbBob;
-  k.distortion = {-0.05, 0.02, 0.0, 0.0, 0.0};
-  return core::PinholeCamera(k);
-}
-
-Eigen::Isometry3d true_T_camera_lidar() {
-  Eigen::Matrix3d R;
-  R << 0, -1, 0, 0, 0, -1, 1, 0, 0;
-  // A small lateral baseline keeps the cloth's occlusion shadow behind the card edges
-  // (baseline * gap / depth = 1.2 mm at 5 m) well below what is measured here.
-  return core::make_transform(R, Eigen::Vector3d(0.02, -0.01, 0.05));
-}
-
-GrayImage render(const Scene& scene, const core::PinholeCamera& camera, const Eigen::Isometry3d& T_camera_lidar) {
-  GrayImage image{camera.width(), camera.height(), {}};
-  image.pixels.assign(static_cast<std::size_t>(image.width) * image.height, 0.0f);
-  const Eigen::Isometry3d T_lidar_camera = T_camera_lidar.inverse();
-  // Pixel rays (Newton undistortion) are the slow part; every scene uses the same camera.
-  static std::vector<Eigen::Vector3d> rays;
-  if (rays.empty()) {
-    for (int v = 0; v < image.height; ++v) {
-      for (int u = 0; u < image.width; ++u) rays.push_back(camera.unproject(Eigen::Vector2d(u, v)));
-    }
-  }
-  for (int v = 0; v < image.height; ++v) {
-    for (int u = 0; u < image.width; ++u) {
-      const Eigen::Vector3d dir = T_lidar_camera.linear() * rays[static_cast<std::size_t>(v) * image.width + u];
-      Eigen::Vector3d hit;
-      float colour = 0.0f;
-      if (scene.cast(T_lidar_camera.translation(), dir, &hit, &colour)) {
-        image.pixels[static_cast<std::size_t>(v) * image.width + u] = colour;
-      }
-    }
-  }
-  return image;
-}
-
-/// A tilting scan of the scene: 0.25 deg beams (UTM-30LX), 0.2 deg between scan lines,
-/// 1 cm range noise. With mixed_pixels, a beam whose next beam hits the other surface returns
-/// a range somewhere in between (what a UTM-30LX does at depth edges).
-std::vector<Eigen::Vector3d> scan(const Scene& scene, unsigned seed, bool mixed_pixels = false) {
-  std::vector<Eigen::Vector3d> points;
-  std::mt19937 rng(seed);
-  std::normal_distribution<double> noise(0.0, 0.01);
-  const double yaw_c = std::atan2(scene.card_centre.y(), scene.card_centre.x());
-  const double pitch_c = std::atan2(scene.card_centre.z(), scene.card_centre.x());
-  const double half_yaw = std::atan2(1.2, scene.depth_m), half_pitch = std::atan2(1.0, scene.depth_m);
-  for (double pitch = pitch_c - half_pitch; pitch <= pitch_c + half_pitch; pitch += 0.2 * kDeg) {
-    for (double yaw = -135.0 * kDeg; yaw <= 135.0 * kDeg; yaw += 0.25 * kDeg) {
-      if (std::abs(yaw - yaw_c) > half_yaw) continue;
-      const Eigen::Vector3d dir(std::cos(pitch) * std::cos(yaw), std::cos(pitch) * std::sin(yaw), std::sin(pitch));
-      Eigen::Vector3d hit;
-      float colour;
-      if (!scene.cast(Eigen::Vector3d::Zero(), dir, &hit, &colour)) continue;
-      if (mixed_pixels) {
-        const double next = yaw + 0.25 * kDeg;
-        const Eigen::Vector3d dir2(std::cos(pitch) * std::cos(next), std::cos(pitch) * std::sin(next), std::sin(pitch));
-        Eigen::Vector3d hit2;
-        float colour2;
-        if (scene.cast(Eigen::Vector3d::Zero(), dir2, &hit2, &colour2) && colour2 != colour) {
-          const double r1 = hit.norm(), r2 = hit2.norm();
-          points.push_back(dir * (r1 + std::uniform_real_distribution<double>(0.1, 0.9)(rng) * (r2 - r1)));
-          continue;
-        }
-      }
-      points.push_back(hit + noise(rng) * dir);
-    }
-  }
-  return points;
-}
+using namespace test;  // NOLINT: the scene helpers
 
 TEST(ColoringBand, PerfectCalibrationLeavesAlmostNoBand) {
   const Scene scene(7.5);
