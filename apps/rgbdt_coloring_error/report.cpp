@@ -90,6 +90,36 @@ ReportFiles write_report(const std::string& dir, const error_model::ColoringErro
     }
     md << "\n";
   }
+  // Dependence on the image position: the centre and the four corners (5 % in from the border).
+  {
+    const double mu = 0.05 * K.width, mv = 0.05 * K.height;
+    const std::pair<const char*, Eigen::Vector2d> positions[] = {
+        {"centre", Eigen::Vector2d(K.cx, K.cy)},
+        {"top left", Eigen::Vector2d(mu, mv)},
+        {"top right", Eigen::Vector2d(K.width - 1 - mu, mv)},
+        {"bottom left", Eigen::Vector2d(mu, K.height - 1 - mv)},
+        {"bottom right", Eigen::Vector2d(K.width - 1 - mu, K.height - 1 - mv)}};
+    std::vector<double> depths;
+    for (double d : {5.0, 10.0, 15.0}) {
+      if (d >= settings.plot_min_m && d <= settings.plot_max_m) depths.push_back(d);
+    }
+    if (!depths.empty()) {
+      md << "\nTotal error by image position (surface facing the camera):\n\n| pixel |";
+      for (double d : depths) md << " " << fixed(d, 1) << " m [px] | " << fixed(d, 1) << " m [cm] |";
+      md << "\n|---|";
+      for (std::size_t i = 0; i < 2 * depths.size(); ++i) md << "---:|";
+      md << "\n";
+      for (const auto& [name, uv] : positions) {
+        md << "| " << name << " (" << fixed(uv.x(), 0) << ", " << fixed(uv.y(), 0) << ") |";
+        for (double d : depths) {
+          const auto p = model.predict(uv, d);
+          md << " " << fixed(p[Source::kTotal].pixel_rms_px(), 3) << " | " << fixed(100.0 * p[Source::kTotal].surface_rms_m(), 3)
+             << " |";
+        }
+        md << "\n";
+      }
+    }
+  }
   md << "\n![predicted colouring error](" << std::filesystem::path(files.png).filename().string() << ")\n";
   std::ofstream out(files.markdown);
   out << md.str();
