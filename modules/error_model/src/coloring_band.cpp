@@ -71,7 +71,9 @@ Plane fit_plane_least_squares(const std::vector<Eigen::Vector3d>& points) {
   return Plane{eig.eigenvectors().col(0), centroid};  // smallest spread = normal
 }
 
-/// The plane with most inliers, refined by least squares; none if all samples are degenerate.
+/// The upright plane (|normal z| <= kMaxUprightNormalZ, so never the floor) with most
+/// inliers, refined by least squares; none if no sample gives one.
+constexpr double kMaxUprightNormalZ = 0.7;
 std::optional<Plane> ransac_plane(const std::vector<Eigen::Vector3d>& points, double tolerance_m, int iterations,
                                   unsigned seed) {
   std::mt19937 rng(seed);
@@ -83,7 +85,7 @@ std::optional<Plane> ransac_plane(const std::vector<Eigen::Vector3d>& points, do
     const Eigen::Vector3d& b = points[pick(rng)];
     const Eigen::Vector3d& c = points[pick(rng)];
     const Eigen::Vector3d n = (b - a).cross(c - a);
-    if (n.norm() < 1e-9) continue;
+    if (n.norm() < 1e-9 || std::abs(n.normalized().z()) > kMaxUprightNormalZ) continue;
     const Plane plane{n.normalized(), a};
     std::size_t inliers = 0;
     for (const auto& p : points) inliers += std::abs(plane.distance(p)) <= tolerance_m;
@@ -170,7 +172,7 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
     std::optional<Plane> fitted = ransac_plane(set, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations, options.seed);
     if (!fitted) continue;
     Plane candidate = *fitted;
-    if (std::abs(candidate.normal.z()) > 0.7) continue;  // floor or ceiling, not a card
+    if (std::abs(candidate.normal.z()) > kMaxUprightNormalZ) continue;  // refit tilted too far
     if (candidate.normal.dot(candidate.point) > 0.0) candidate.normal = -candidate.normal;
     if (!card_plane || std::abs(candidate.normal.dot(candidate.point)) <
                            std::abs(card_plane->normal.dot(card_plane->point))) {
