@@ -65,7 +65,8 @@ TEST(ErrorPropagation, FirstOrderAgreesWithMonteCarloForEverySource) {
   const ColoringErrorModel model(rig_sources());
   const Eigen::Vector3d tilted = Eigen::Vector3d(0.5, -0.2, -1.0).normalized();
   std::uint64_t seed = 7;
-  for (double depth : {2.0, 5.0, 10.0, 15.0}) {
+  // Near, where LIDAR noise and translation dominate, and far, where rotation does.
+  for (double depth : {2.0, 15.0}) {
     for (const Eigen::Vector2d& pixel : {Eigen::Vector2d(640.0, 480.0), Eigen::Vector2d(100.0, 850.0)}) {
       for (const Eigen::Vector3d& normal : {Eigen::Vector3d(-Eigen::Vector3d::UnitZ()), tilted}) {
         const ColoringErrorPrediction fo = model.predict(pixel, depth, normal);
