@@ -18,6 +18,7 @@
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/session.hpp"
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/error_model/coloring_band.hpp"
@@ -105,31 +106,23 @@ SetupSession read_setup_session(const std::string& path) {
   fs::path yaml_path(path);
   if (fs::is_directory(yaml_path)) yaml_path /= "session.yaml";
   const std::string src = yaml_path.string();
+  if (!fs::exists(yaml_path)) throw core::Error(src, "missing (expected the setup's session.yaml or its folder)");
   const YAML::Node root = core::load_yaml_file(src);
   SetupSession s;
   s.directory = fs::absolute(yaml_path).parent_path().lexically_normal().string();
-  const fs::path dir(s.directory);
-  const YAML::Node cameras = core::require_key(root, "cameras", src, "a map camera -> {intrinsics: file.yaml}");
-  std::map<std::string, std::string> frames;
-  for (const auto& kv : cameras) {
-    const std::string name = kv.first.as<std::string>();
-    s.intrinsics[name] = resolve(dir, core::require_string(kv.second, "intrinsics", src + " (cameras." + name + ")"));
-    if (kv.second["frames"]) frames[name] = resolve(dir, kv.second["frames"].as<std::string>());
-  }
-  if (root["views"]) {
-    for (std::size_t i = 0; i < root["views"].size(); ++i) {
-      const YAML::Node v = root["views"][i];
-      const std::string ctx = src + " (views[" + std::to_string(i) + "])";
-      SetupView view;
-      view.cloud = resolve(dir, core::require_string(v, "cloud", ctx));
-      const YAML::Node images = core::require_key(v, "images", ctx, "a map camera -> image.png");
-      for (const auto& kv : images) view.images[kv.first.as<std::string>()] = resolve(dir, kv.second.as<std::string>());
-      s.views.push_back(view);
+  if (!root["views"]) {
+    // Mapping layout (what rgbdt_sim coloring-setup writes): assembled clouds + frame indexes.
+    const core::MappingSession mapping = core::read_mapping_session(src);
+    if (mapping.lidar.clouds.empty()) {
+      throw core::Error(src, "lidar has no 'clouds' index: expected assembled clouds (lidar: {clouds: index.csv}) "
+                             "or a 'views' list");
     }
-  } else if (root["lidar"] && root["lidar"]["clouds"]) {
-    const auto clouds = core::read_time_index(resolve(dir, root["lidar"]["clouds"].as<std::string>()));
+    const auto clouds = core::read_time_index(mapping.lidar.clouds);
     std::map<std::string, std::vector<core::TimedFile>> camera_frames;
-    for (const auto& [name, index] : frames) camera_frames[name] = core::read_time_index(index);
+    for (const auto& [name, entry] : mapping.cameras) {
+      s.intrinsics[name] = entry.intrinsics;
+      if (!entry.frames.empty()) camera_frames[name] = core::read_time_index(entry.frames);
+    }
     for (const auto& c : clouds) {
       SetupView view;
       view.cloud = c.file;
@@ -140,9 +133,24 @@ SetupSession read_setup_session(const std::string& path) {
       s.views.push_back(view);
     }
   } else {
-    throw core::Error(src, "neither 'views' (cloud + images per placement) nor 'lidar: {clouds: index.csv}'");
+    // Calibration layout: one entry per placement with its cloud and images.
+    const fs::path dir(s.directory);
+    const YAML::Node cameras = core::require_key(root, "cameras", src, "a map camera -> {intrinsics: file.yaml}");
+    for (const auto& kv : cameras) {
+      const std::string name = kv.first.as<std::string>();
+      s.intrinsics[name] = resolve(dir, core::require_string(kv.second, "intrinsics", src + " (cameras." + name + ")"));
+    }
+    for (std::size_t i = 0; i < root["views"].size(); ++i) {
+      const YAML::Node v = root["views"][i];
+      const std::string ctx = src + " (views[" + std::to_string(i) + "])";
+      SetupView view;
+      view.cloud = resolve(dir, core::require_string(v, "cloud", ctx));
+      const YAML::Node images = core::require_key(v, "images", ctx, "a map camera -> image.png");
+      for (const auto& kv : images) view.images[kv.first.as<std::string>()] = resolve(dir, kv.second.as<std::string>());
+      s.views.push_back(view);
+    }
   }
-  if (s.views.empty()) throw core::Error(src, "no views: expected one per card placement");
+  if (s.views.empty()) throw core::Error(src, "no views: expected one cloud per card placement");
   return s;
 }
 

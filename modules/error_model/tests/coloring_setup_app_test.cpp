@@ -15,6 +15,8 @@
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/session.hpp"
+#include "rgbdt/core/time_index.hpp"
 
 namespace fs = std::filesystem;
 
@@ -81,8 +83,12 @@ TEST(ColoringSetupApp, MeasuresTheBandTheWrongExtrinsicCausesAtEveryDepth) {
   core::Extrinsics estimate{"rgb", "lidar", T_est, core::Matrix6d(sigma.cwiseAbs2().asDiagonal())};
   core::write_extrinsics((dir / "calib" / "extrinsics_rgb.yaml").string(), estimate);
 
+  // Both layouts read_setup_session accepts: a 'views' list (calibration layout) and, in a
+  // second folder over the same files, clouds and frames indexed by time (mapping layout, as
+  // rgbdt_sim coloring-setup writes).
   std::ofstream yaml(dir / "session.yaml");
   yaml << "cameras:\n  rgb: {intrinsics: rgb.yaml}\nviews:\n";
+  std::vector<core::TimedFile> cloud_index, frame_index;
   const double depths[] = {5.0, 7.5, 10.0, 12.0, 15.0};
   for (int i = 0; i < 5; ++i) {
     const Scene scene(depths[i]);
@@ -102,36 +108,50 @@ TEST(ColoringSetupApp, MeasuresTheBandTheWrongExtrinsicCausesAtEveryDepth) {
     png.convertTo(png8, CV_8U);
     ASSERT_TRUE(cv::imwrite((dir / "rgb" / (name + ".png")).string(), png8));
     yaml << "  - {cloud: clouds/" << name << ".pcd, images: {rgb: rgb/" << name << ".png}}\n";
+    cloud_index.push_back({10.0 * i, (dir / "clouds" / (name + ".pcd")).string()});
+    frame_index.push_back({10.0 * i + 0.01, (dir / "rgb" / (name + ".png")).string()});
   }
   yaml.close();
+  core::write_time_index((dir / "clouds" / "index.csv").string(), cloud_index);
+  core::write_time_index((dir / "rgb" / "index.csv").string(), frame_index);
+  core::MappingSession mapping;
+  mapping.lidar.clouds = (dir / "clouds" / "index.csv").string();
+  mapping.cameras["rgb"].intrinsics = (dir / "rgb.yaml").string();
+  mapping.cameras["rgb"].frames = (dir / "rgb" / "index.csv").string();
+  fs::create_directories(dir / "mapping_layout" / "true_calib");
+  fs::copy(dir / "true_calib", dir / "mapping_layout" / "true_calib", fs::copy_options::recursive);
+  core::write_mapping_session((dir / "mapping_layout" / "session.yaml").string(), mapping);
 
-  const fs::path out = dir / "out";
-  const std::string command = app_path() + " --setup " + dir.string() + " --calib " + (dir / "calib").string() +
-                              " --report " + out.string() + " > " + (dir / "stdout.txt").string() + " 2>&1";
-  ASSERT_EQ(std::system(command.c_str()), 0) << command << "\n" << std::ifstream(dir / "stdout.txt").rdbuf();
-  std::ifstream report(out / "coloring_setup.md");
-  ASSERT_TRUE(report.good()) << "no " << (out / "coloring_setup.md");
-  std::stringstream text;
-  text << report.rdbuf();
-  const auto rows = table_rows(text.str());
-  ASSERT_EQ(rows.size(), 5u) << text.str();
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const auto& r = rows[i];
-    ASSERT_GE(r.size(), 11u) << text.str();
-    // Columns: depth, x, y, predicted x, y, expected x, y, truth x, y, paper x, y, points.
-    EXPECT_NEAR(r[0], Scene(depths[i]).card_centre.norm(), 0.05);
-    // Measured vs the band the extrinsic error causes: 0.2 point spacing + half a pixel,
-    // the tolerance of the library test (coloring_band_test.cpp), in cm.
-    const double spacing_x_cm = 100.0 * depths[i] * 0.25 * kDeg, spacing_y_cm = 100.0 * depths[i] * 0.2 * kDeg;
-    const double half_pixel_cm = 100.0 * 0.5 * depths[i] / camera.intrinsics().fx;
-    EXPECT_NEAR(r[1], r[5], 0.2 * spacing_x_cm + half_pixel_cm + 0.05) << "depth " << depths[i];  // + table rounding
-    EXPECT_NEAR(r[2], r[6], 0.2 * spacing_y_cm + half_pixel_cm + 0.05) << "depth " << depths[i];
-    // The true calibration leaves (almost) no band: under one point spacing.
-    EXPECT_LT(r[7], spacing_x_cm);
-    EXPECT_LT(r[8], spacing_y_cm);
-    // The model's 95 % band covers the error actually made (it is ~1 sigma of the covariance).
-    EXPECT_LE(r[5], r[3]);
-    EXPECT_LE(r[6], r[4]);
+  for (const fs::path& session : {dir, dir / "mapping_layout"}) {
+    SCOPED_TRACE(session.string());
+    const fs::path out = session / "out";
+    const std::string command = app_path() + " --setup " + session.string() + " --calib " + (dir / "calib").string() +
+                                " --report " + out.string() + " > " + (session / "stdout.txt").string() + " 2>&1";
+    ASSERT_EQ(std::system(command.c_str()), 0) << command << "\n" << std::ifstream(session / "stdout.txt").rdbuf();
+    std::ifstream report(out / "coloring_setup.md");
+    ASSERT_TRUE(report.good()) << "no " << (out / "coloring_setup.md");
+    std::stringstream text;
+    text << report.rdbuf();
+    const auto rows = table_rows(text.str());
+    ASSERT_EQ(rows.size(), 5u) << text.str();
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const auto& r = rows[i];
+      ASSERT_GE(r.size(), 11u) << text.str();
+      // Columns: depth, x, y, predicted x, y, expected x, y, truth x, y, paper x, y, points.
+      EXPECT_NEAR(r[0], Scene(depths[i]).card_centre.norm(), 0.05);
+      // Measured vs the band the extrinsic error causes: 0.2 point spacing + half a pixel,
+      // the tolerance of the library test (coloring_band_test.cpp), in cm.
+      const double spacing_x_cm = 100.0 * depths[i] * 0.25 * kDeg, spacing_y_cm = 100.0 * depths[i] * 0.2 * kDeg;
+      const double half_pixel_cm = 100.0 * 0.5 * depths[i] / camera.intrinsics().fx;
+      EXPECT_NEAR(r[1], r[5], 0.2 * spacing_x_cm + half_pixel_cm + 0.05) << "depth " << depths[i];  // + table rounding
+      EXPECT_NEAR(r[2], r[6], 0.2 * spacing_y_cm + half_pixel_cm + 0.05) << "depth " << depths[i];
+      // The true calibration leaves (almost) no band: under one point spacing.
+      EXPECT_LT(r[7], spacing_x_cm);
+      EXPECT_LT(r[8], spacing_y_cm);
+      // The model's 95 % band covers the error actually made (it is ~1 sigma of the covariance).
+      EXPECT_LE(r[5], r[3]);
+      EXPECT_LE(r[6], r[4]);
+    }
   }
 }
 
