@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -90,6 +91,53 @@ Eigen::Vector2d predicted_sigma(const error_model::ColoringErrorModel& model,
     out[axis] = std::sqrt(std::max(0.0, a.dot(C * a)));
   }
   return out;
+}
+
+/// A view of the card like the paper's Fig. 11-12: points in card coordinates in their
+/// sampled grey, mis-coloured ones ringed in red, mixed pixels in blue, the card extent in green.
+void write_band_plot(const std::string& path, const std::string& title, const error_model::CardBandMeasurement& m) {
+  const double margin = 0.3;
+  const double xa = m.x0_m - margin, xb = m.x1_m + margin, ya = m.y0_m - margin, yb = m.y1_m + margin;
+  const double scale = 700.0 / std::max(xb - xa, yb - ya);  // px per metre
+  const int width = static_cast<int>((xb - xa) * scale) + 1, top = 40, legend = 30;
+  const int height = static_cast<int>((yb - ya) * scale) + 1 + top + legend;
+  cv::Mat canvas(height, width, CV_8UC3, cv::Scalar(90, 140, 90));
+  auto px = [&](const Eigen::Vector2d& xy) {
+    return cv::Point(static_cast<int>((xy.x() - xa) * scale), top + static_cast<int>((yb - xy.y()) * scale));
+  };
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const auto& p : m.points) {
+    lo = std::min(lo, p.intensity);
+    hi = std::max(hi, p.intensity);
+  }
+  const double span = hi > lo ? hi - lo : 1.0;
+  const int radius = std::max(2, static_cast<int>(0.004 * scale));
+  for (const auto& p : m.points) {
+    const int g = static_cast<int>(255.0 * (p.intensity - lo) / span);
+    cv::circle(canvas, px(p.xy_m), radius, cv::Scalar(g, g, g), cv::FILLED);
+  }
+  for (const auto& p : m.points) {
+    using C = error_model::CardPointClass;
+    if (p.label == C::kCardMiscoloured || p.label == C::kBackgroundMiscoloured) {
+      cv::circle(canvas, px(p.xy_m), radius + 3, cv::Scalar(0, 0, 255), 2);
+    } else if (p.label == C::kMixed) {
+      cv::circle(canvas, px(p.xy_m), radius, cv::Scalar(255, 80, 0), cv::FILLED);
+    }
+  }
+  cv::rectangle(canvas, px({m.x0_m, m.y1_m}), px({m.x1_m, m.y0_m}), cv::Scalar(0, 200, 0), 1);
+  cv::rectangle(canvas, cv::Rect(0, 0, width, top), cv::Scalar(255, 255, 255), cv::FILLED);
+  cv::rectangle(canvas, cv::Rect(0, height - legend, width, legend), cv::Scalar(255, 255, 255), cv::FILLED);
+  cv::putText(canvas, title, cv::Point(10, 26), cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  const int ly = height - 10;
+  cv::circle(canvas, cv::Point(15, ly - 5), 6, cv::Scalar(0, 0, 255), 2);
+  cv::putText(canvas, "mis-coloured", cv::Point(27, ly), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::circle(canvas, cv::Point(150, ly - 5), 4, cv::Scalar(255, 80, 0), cv::FILLED);
+  cv::putText(canvas, "mixed pixel (ignored)", cv::Point(160, ly), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1,
+              cv::LINE_AA);
+  cv::rectangle(canvas, cv::Point(340, ly - 10), cv::Point(360, ly), cv::Scalar(0, 200, 0), 1);
+  cv::putText(canvas, "card extent", cv::Point(368, ly), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1,
+              cv::LINE_AA);
+  if (!cv::imwrite(path, canvas)) throw core::Error(path, "cannot write the PNG");
 }
 
 struct Row {
@@ -208,8 +256,11 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
         const auto points = load_points(view.cloud);
         const auto image = load_gray(image_it->second);
         Row row;
+        error_model::CardBandOptions band_options;
+        band_options.keep_points = !settings.report_dir.empty();
         row.measured = error_model::measure_card_band(
-            points, error_model::sample_point_intensities(points, camera, extrinsics.T_parent_child, image));
+            points, error_model::sample_point_intensities(points, camera, extrinsics.T_parent_child, image),
+            band_options);
         row.range_m = row.measured.card_range_m;
         if (truth) {
           // The same measurement with the true calibration: what sampling, mixed pixels and
@@ -223,6 +274,16 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
                                            std::abs(offset.dot(row.measured.card_y_lidar)));
         }
         if (model) row.sigma_m = predicted_sigma(*model, row.measured);
+        if (!settings.report_dir.empty()) {
+          fs::create_directories(settings.report_dir);
+          char name[96];
+          std::snprintf(name, sizeof(name), "setup_%s_%05.2fm.png", camera_name.c_str(), row.range_m);
+          std::ostringstream title;
+          title << camera_name << ", card at " << fixed(row.range_m, 2) << " m: band x " << fixed(100 * row.measured.band_x_m, 1)
+                << " cm, y " << fixed(100 * row.measured.band_y_m, 1) << " cm";
+          write_band_plot((fs::path(settings.report_dir) / name).string(), title.str(), row.measured);
+          row.measured.points.clear();
+        }
         rows.push_back(row);
         std::cerr << camera_name << " view " << i << ": card at " << fixed(row.range_m, 2) << " m, band x "
                   << fixed(100 * row.measured.band_x_m, 1) << " cm, y " << fixed(100 * row.measured.band_y_m, 1)

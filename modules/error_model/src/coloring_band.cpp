@@ -347,6 +347,23 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
     band.outward_m = outward / per_metre;
     band.width_m = band.inward_m + band.outward_m;
   }
+  m.x0_m = x0 - centre.x();
+  m.x1_m = x1 - centre.x();
+  m.y0_m = y0 - centre.y();
+  m.y1_m = y1 - centre.y();
+  if (options.keep_points) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite(intensities[i]) || !in_roi(xy[i])) continue;
+      const bool looks_like_card = card_colour(intensities[i]);
+      CardPoint p{xy[i] - centre, intensities[i], CardPointClass::kMixed};
+      if (geometry[i] == 1) p.label = looks_like_card ? CardPointClass::kCard : CardPointClass::kCardMiscoloured;
+      if (geometry[i] == -1) {
+        p.label = looks_like_card ? CardPointClass::kBackgroundMiscoloured : CardPointClass::kBackground;
+      }
+      if (geometry[i] == 0 && plane.distance(points_lidar[i]) > options.card_plane_tolerance_m) continue;  // in front
+      m.points.push_back(p);
+    }
+  }
   m.band_x_m = 0.5 * (m.edges[0].width_m + m.edges[1].width_m);
   m.band_y_m = 0.5 * (m.edges[2].width_m + m.edges[3].width_m);
   core::log_debug("measure_card_band: card ", m.card_size_m.transpose(), " m at ", m.card_range_m, " m, ",

@@ -58,9 +58,26 @@ struct CardBandOptions {
   /// Length cut off both ends of each edge so that the perpendicular edges' bands are not
   /// counted [m].
   double corner_margin_m = 0.15;
-  int ransac_iterations = 300;  ///< plane hypotheses tried on the bright points
+  int ransac_iterations = 300;  ///< plane hypotheses tried per colour class
   unsigned seed = 1;            ///< RANSAC random seed (results are deterministic)
+  /// Fill CardBandMeasurement::points (for plots like the paper's Fig. 11-12).
+  bool keep_points = false;
   std::string validate() const;  ///< empty when valid, else the reason
+};
+
+/// How a point near the card was classified.
+enum class CardPointClass {
+  kCard,                 ///< on the card, card-coloured
+  kBackground,           ///< on the cloth, cloth-coloured
+  kCardMiscoloured,      ///< on the card, cloth-coloured
+  kBackgroundMiscoloured,  ///< on the cloth, card-coloured
+  kMixed,                ///< between card and cloth (LIDAR mixed pixel), ignored
+};
+
+struct CardPoint {
+  Eigen::Vector2d xy_m;  ///< card coordinates (along the LIDAR ray onto the card plane) [m]
+  double intensity = 0.0;
+  CardPointClass label = CardPointClass::kCard;
 };
 
 /// One card edge.
@@ -87,6 +104,10 @@ struct CardBandMeasurement {
   int card_points = 0, background_points = 0, coloured_points = 0;
   int mixed_points = 0;  ///< points between card and cloth (LIDAR mixed pixels), ignored
   std::array<EdgeBand, 4> edges;  ///< left, right, bottom, top
+  /// Card extent in card coordinates [m] (x0, x1, y0, y1: extreme card points).
+  double x0_m = 0.0, x1_m = 0.0, y0_m = 0.0, y1_m = 0.0;
+  /// The coloured points around the card, when CardBandOptions::keep_points.
+  std::vector<CardPoint> points;
   double band_x_m = 0.0;  ///< mean band of the left and right edges (Table 2's x) [m]
   double band_y_m = 0.0;  ///< mean band of the bottom and top edges (Table 2's y) [m]
 };
