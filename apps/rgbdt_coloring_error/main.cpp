@@ -32,7 +32,7 @@ struct Options {
   bool json = false;
   // Report mode.
   std::string calib, intrinsics, report, camera, rig, setup;
-  std::vector<double> intrinsics_sigma, rotation_sigma_deg, translation_sigma_m, pixel;
+  std::vector<double> intrinsics_sigma, rotation_sigma_deg, translation_sigma_m, pixel, what_if;
   double beam_sigma_deg = 0.0, tilt_sigma_deg = 0.025;
   double depth_min = 1.0, depth_max = 20.0, depth_step = 1.0;
   int monte_carlo = 0;
@@ -178,12 +178,14 @@ int main(int argc, char** argv) {
       "          and extrinsics covariance), per source, as OUT_DIR/coloring_error_<camera>.md + .png.\n"
       "          DIR holds extrinsics_<camera>.yaml (rgbdt_calibrate); the one whose parent_frame is the\n"
       "          intrinsics' camera_name is used, or extrinsics_<NAME>.yaml with --camera NAME.\n"
-      "  setup   --setup SESSION --calib DIR [--camera NAME] [--report OUT_DIR]\n"
+      "  setup   --setup SESSION --calib DIR [--camera NAME] [--report OUT_DIR] [--what-if-error ...]\n"
       "          the coloring-error setup of Sec. 4.4 (white card before a black cloth at several depths,\n"
       "          e.g. from 'rgbdt_sim coloring-setup'): colours each cloud with DIR's extrinsics, measures\n"
       "          the mis-coloured band along the card edges in x and y and prints Table 2 (RGB) / Table 3\n"
       "          (thermal) with the model's predicted band, the paper's figures and, when the session has\n"
-      "          true_calib/, the band the calibration error should cause.\n\n"
+      "          true_calib/, the band the calibration error should cause. --report also writes a PNG\n"
+      "          per view with the mis-coloured points ringed; --rotation-sigma-deg/--translation-sigma-m\n"
+      "          give the covariance when the extrinsics file has none.\n\n"
       "Examples:\n"
       "  rgbdt_coloring_error --fx 1335.054 --lidar-noise 0.02 --fx-error 2 --json\n"
       "  rgbdt_coloring_error --calib calib/ --intrinsics rgb.yaml --report out/ --intrinsics-sigma 2 2 1.5 1.5\n"
@@ -207,6 +209,10 @@ int main(int argc, char** argv) {
                  "std devs of rx ry rz [deg]; overrides the file's covariance (with --translation-sigma-m)")
       ->expected(3);
   app.add_option("--translation-sigma-m", o.translation_sigma_m, "std devs of tx ty tz [m]")->expected(3);
+  app.add_option("--what-if-error", o.what_if,
+                 "setup mode: colour with the calibration moved by RX RY RZ [deg] TX TY TZ [m] in the camera frame, "
+                 "to see the band a calibration error of that size leaves")
+      ->expected(6);
   app.add_option("--beam-sigma-deg", o.beam_sigma_deg, "LIDAR beam angle noise [deg] (default 0)");
   app.add_option("--tilt-sigma-deg", o.tilt_sigma_deg,
                  "tilt angle noise [deg] (default 0.025: a 4096-count encoder's quantisation)");
@@ -215,11 +221,14 @@ int main(int argc, char** argv) {
   app.add_option("--depth-min", o.depth_min, "report depth range start [m] (default 1)");
   app.add_option("--depth-max", o.depth_max, "report depth range end [m] (default 20)");
   app.add_option("--depth-step", o.depth_step, "report table step [m] (default 1)");
+  bool verbose = false;
+  app.add_flag("-v,--verbose", verbose, "print the libraries' debug messages");
   app.add_option("--monte-carlo", o.monte_carlo, "add a Monte Carlo check column with N samples per depth");
   CLI11_PARSE(app, argc, argv);
   (void)noise;
 
   core::set_log_sink(core::stderr_log_sink);
+  if (verbose) core::set_log_level(core::LogLevel::kDebug);
   try {
     const bool paper = fx->count() > 0;
     const bool setup_mode = setup->count() > 0;
@@ -240,6 +249,20 @@ int main(int argc, char** argv) {
       settings.intrinsics_sigma = o.intrinsics_sigma;
       settings.lidar_noise_m = o.lidar_noise_m;
       settings.report_dir = o.report;
+      if (!o.rotation_sigma_deg.empty() || !o.translation_sigma_m.empty()) {
+        if (o.rotation_sigma_deg.size() != 3 || o.translation_sigma_m.size() != 3) {
+          throw std::invalid_argument("--rotation-sigma-deg and --translation-sigma-m: expected 3 values each");
+        }
+        core::Vector6d sigma;
+        sigma << o.rotation_sigma_deg[0] * kDeg, o.rotation_sigma_deg[1] * kDeg, o.rotation_sigma_deg[2] * kDeg,
+            o.translation_sigma_m[0], o.translation_sigma_m[1], o.translation_sigma_m[2];
+        settings.extrinsics_covariance = core::Matrix6d(sigma.cwiseAbs2().asDiagonal());
+      }
+      if (!o.what_if.empty()) {
+        core::Vector6d offset;
+        offset << o.what_if[0] * kDeg, o.what_if[1] * kDeg, o.what_if[2] * kDeg, o.what_if[3], o.what_if[4], o.what_if[5];
+        settings.extrinsics_offset = offset;
+      }
       return apps::run_setup(apps::read_setup_session(o.setup), settings);
     }
     if (calib->count() == 0 || intrinsics->count() == 0 || report->count() == 0) {

@@ -21,6 +21,7 @@
 #include "rgbdt/core/extrinsics.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/core/time_index.hpp"
+#include "rgbdt/core/transform.hpp"
 #include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/error_model/coloring_band.hpp"
 #include "rgbdt/error_model/error_propagation.hpp"
@@ -220,7 +221,9 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
       std::cerr << "skipping camera " << camera_name << ": " << extrinsics_path.string() << " does not exist\n";
       continue;
     }
-    const core::Extrinsics extrinsics = core::read_extrinsics(extrinsics_path.string());
+    core::Extrinsics extrinsics = core::read_extrinsics(extrinsics_path.string());
+    if (settings.extrinsics_covariance) extrinsics.covariance = *settings.extrinsics_covariance;
+    if (settings.extrinsics_offset) extrinsics.T_parent_child = core::from_vector6(*settings.extrinsics_offset) * extrinsics.T_parent_child;
     const core::CameraIntrinsics intrinsics = core::read_camera_info(session.intrinsics.at(camera_name));
     const core::PinholeCamera camera(intrinsics);
     std::optional<core::Extrinsics> truth;
@@ -297,7 +300,14 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
     std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.range_m < b.range_m; });
     const bool thermal = camera_name.find("thermal") != std::string::npos;
     md << "\n### Table " << (thermal ? 3 : 2) << " (" << camera_name << "): mis-coloured band along the card edges\n\n"
-       << "Extrinsics `" << extrinsics_path.string() << "`. Measured automatically (rgbdt::error_model::"
+       << "Extrinsics `" << extrinsics_path.string() << "`";
+    if (settings.extrinsics_offset) {
+      const auto& d = *settings.extrinsics_offset;
+      md << ", moved by the what-if offset rx ry rz = " << fixed(d[0] * 180 / M_PI, 3) << " " << fixed(d[1] * 180 / M_PI, 3)
+         << " " << fixed(d[2] * 180 / M_PI, 3) << " deg, tx ty tz = " << fixed(d[3] * 100, 2) << " " << fixed(d[4] * 100, 2)
+         << " " << fixed(d[5] * 100, 2) << " cm (camera frame)";
+    }
+    md << ". Measured automatically (rgbdt::error_model::"
           "measure_card_band): x = band across the left/right edges, y = across the bottom/top edges, mean of the "
           "two edges, in cm.";
     if (model) md << " Predicted: 95 % bound 1.96 sigma of the first-order model (extrinsics covariance, LIDAR noise "

@@ -1,7 +1,9 @@
 #pragma once
 // The --setup mode: the coloring-error setup of paper Sec. 4.4 (card before cloth at several
 // depths), measured automatically, as Tables 2 and 3.
+#include <Eigen/Core>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -32,6 +34,12 @@ struct SetupSettings {
   std::string camera;  ///< only this camera (empty: every camera with extrinsics)
   std::vector<double> intrinsics_sigma;
   double lidar_noise_m = 0.02;
+  /// Extrinsics covariance to use when the calibration file has none, or to override it
+  /// (empty: the file's).
+  std::optional<Eigen::Matrix<double, 6, 6>> extrinsics_covariance;
+  /// What-if: colour with the calibration moved by this [rx ry rz tx ty tz] (rad, m) in the
+  /// camera frame, T' = from_vector6(offset) * T (empty: as calibrated).
+  std::optional<Eigen::Matrix<double, 6, 1>> extrinsics_offset;
   std::string report_dir;  ///< also write coloring_setup.md there (empty: stdout only)
 };
 

@@ -17,44 +17,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-/// Otsu's threshold of the finite values (256-bin histogram between their min and max).
-double otsu_threshold(const std::vector<double>& values) {
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (double v : values) {
-    if (std::isfinite(v)) {
-      lo = std::min(lo, v);
-      hi = std::max(hi, v);
-    }
-  }
-  if (!(hi > lo)) return lo;
-  constexpr int kBins = 256;
-  std::array<double, kBins> histogram{};
-  double total = 0.0;
-  for (double v : values) {
-    if (!std::isfinite(v)) continue;
-    const int bin = std::min(kBins - 1, static_cast<int>((v - lo) / (hi - lo) * kBins));
-    histogram[bin] += 1.0;
-    total += 1.0;
-  }
-  double sum_all = 0.0;
-  for (int i = 0; i < kBins; ++i) sum_all += i * histogram[i];
-  double weight_low = 0.0, sum_low = 0.0, best = -1.0;
-  int best_bin = 0;
-  for (int i = 0; i < kBins; ++i) {
-    weight_low += histogram[i];
-    sum_low += i * histogram[i];
-    const double weight_high = total - weight_low;
-    if (weight_low <= 0.0 || weight_high <= 0.0) continue;
-    const double mean_low = sum_low / weight_low, mean_high = (sum_all - sum_low) / weight_high;
-    const double between = weight_low * weight_high * (mean_low - mean_high) * (mean_low - mean_high);
-    if (between > best) {
-      best = between;
-      best_bin = i;
-    }
-  }
-  return lo + (best_bin + 1.0) * (hi - lo) / kBins;  // upper boundary of the dark class
-}
-
 struct Plane {
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   Eigen::Vector3d point = Eigen::Vector3d::Zero();
@@ -71,11 +33,18 @@ Plane fit_plane_least_squares(const std::vector<Eigen::Vector3d>& points) {
   return Plane{eig.eigenvectors().col(0), centroid};  // smallest spread = normal
 }
 
-/// The upright plane (|normal z| <= kMaxUprightNormalZ, so never the floor) with most
-/// inliers, refined by least squares; none if no sample gives one.
+/// Upright planes (cards, cloths) have |normal z| <= kMaxUprightNormalZ; the ground has
+/// |normal z| >= kMinGroundNormalZ.
 constexpr double kMaxUprightNormalZ = 0.7;
+constexpr double kMinGroundNormalZ = 0.9;
+enum class PlaneKind { kUpright, kGround };
+constexpr double kMinGroundDepthM = 0.3;   ///< the ground is at least this far below the LIDAR
+constexpr double kMinGroundSpreadM = 2.0;  ///< 10-90 % spread of its points' horizontal range
+
+/// The plane of the given kind with most inliers, refined by least squares; none if no
+/// sample gives one.
 std::optional<Plane> ransac_plane(const std::vector<Eigen::Vector3d>& points, double tolerance_m, int iterations,
-                                  unsigned seed) {
+                                  unsigned seed, PlaneKind kind = PlaneKind::kUpright) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
   Plane best;
@@ -85,7 +54,9 @@ std::optional<Plane> ransac_plane(const std::vector<Eigen::Vector3d>& points, do
     const Eigen::Vector3d& b = points[pick(rng)];
     const Eigen::Vector3d& c = points[pick(rng)];
     const Eigen::Vector3d n = (b - a).cross(c - a);
-    if (n.norm() < 1e-9 || std::abs(n.normalized().z()) > kMaxUprightNormalZ) continue;
+    if (n.norm() < 1e-9) continue;
+    const double nz = std::abs(n.normalized().z());
+    if (kind == PlaneKind::kUpright ? nz > kMaxUprightNormalZ : nz < kMinGroundNormalZ) continue;
     const Plane plane{n.normalized(), a};
     std::size_t inliers = 0;
     for (const auto& p : points) inliers += std::abs(plane.distance(p)) <= tolerance_m;
@@ -156,51 +127,91 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
     throw std::invalid_argument(os.str());
   }
   CardBandMeasurement m;
-  m.intensity_threshold = otsu_threshold(intensities);
-  std::vector<Eigen::Vector3d> bright, dark;
-  for (std::size_t i = 0; i < points_lidar.size(); ++i) {
-    if (!std::isfinite(intensities[i])) continue;
-    ++m.coloured_points;
-    (intensities[i] > m.intensity_threshold ? bright : dark).push_back(points_lidar[i]);
-  }
-  // The card is the nearer of the upright planes of the two colour classes: white before a
-  // black cloth in RGB, but in a thermal image it may be the darker (colder) one.
-  std::optional<Plane> card_plane;
-  for (const bool bright_class : {true, false}) {
-    const auto& set = bright_class ? bright : dark;
-    if (set.size() < 20) continue;
-    std::optional<Plane> fitted = ransac_plane(set, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations, options.seed);
-    if (!fitted) continue;
-    Plane candidate = *fitted;
-    if (std::abs(candidate.normal.z()) > kMaxUprightNormalZ) continue;  // refit tilted too far
-    if (candidate.normal.dot(candidate.point) > 0.0) candidate.normal = -candidate.normal;
-    if (!card_plane || std::abs(candidate.normal.dot(candidate.point)) <
-                           std::abs(card_plane->normal.dot(card_plane->point))) {
-      card_plane = candidate;
-      m.card_is_bright = bright_class;
+  const std::size_t n = points_lidar.size();
+  // The ground first: a vertical plane cuts a strip of it that can hold more points than a
+  // distant card, so ground points must not take part in finding the card.
+  std::vector<char> ground(n, 0);
+  {
+    std::vector<Eigen::Vector3d> coloured;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (std::isfinite(intensities[i])) coloured.push_back(points_lidar[i]);
+    }
+    m.coloured_points = static_cast<int>(coloured.size());
+    const std::optional<Plane> floor =
+        coloured.size() >= 20 ? ransac_plane(coloured, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations,
+                                             options.seed + 2, PlaneKind::kGround)
+                              : std::nullopt;
+    // A horizontal plane through a scan line of card and cloth also holds many points; the
+    // ground is below the sensor and its points spread over a wide range of distances.
+    std::vector<double> floor_ranges;
+    if (floor) {
+      for (const auto& p : coloured) {
+        if (std::abs(floor->distance(p)) <= options.card_plane_tolerance_m) floor_ranges.push_back(p.head<2>().norm());
+      }
+    }
+    const bool below = floor && std::abs(floor->normal.dot(floor->point)) > kMinGroundDepthM &&
+                       floor->point.z() < 0.0;
+    const bool spread = floor_ranges.size() >= std::max<std::size_t>(20, coloured.size() / 20) &&
+                        quantile(floor_ranges, 0.9) - quantile(floor_ranges, 0.1) > kMinGroundSpreadM;
+    if (below && spread) {
+      for (std::size_t i = 0; i < n; ++i) {
+        if (std::abs(floor->distance(points_lidar[i])) <= options.card_plane_tolerance_m) {
+          ground[i] = 1;
+          ++m.ground_points;
+        }
+      }
     }
   }
-  if (!card_plane) {
+  // Geometry first, colour second: the largest upright plane and the largest one among the
+  // points off it are the cloth and the card; the nearer one is the card. (Splitting by colour
+  // first fails in thermal images, where the cloth's rim shows the sky and the pavement.)
+  std::vector<Eigen::Vector3d> upright_points;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!ground[i] && std::isfinite(intensities[i])) upright_points.push_back(points_lidar[i]);
+  }
+  const double tol = options.card_plane_tolerance_m;
+  std::optional<Plane> first =
+      upright_points.size() >= 20
+          ? ransac_plane(upright_points, 0.5 * tol, options.ransac_iterations, options.seed)
+          : std::nullopt;
+  std::optional<Plane> second;
+  if (first) {
+    std::vector<Eigen::Vector3d> off;
+    for (const auto& p : upright_points) {
+      if (std::abs(first->distance(p)) > tol) off.push_back(p);
+    }
+    if (off.size() >= 20) second = ransac_plane(off, 0.5 * tol, options.ransac_iterations, options.seed + 1);
+  }
+  if (!first || !second) {
     std::ostringstream os;
-    os << "no upright plane in either colour class (" << bright.size() << " bright, " << dark.size()
-       << " dark points of " << points_lidar.size() << "): expected a card before a cloth in view of the camera";
+    os << "found " << (first ? 1 : 0) + (second ? 1 : 0) << " upright plane(s) among " << upright_points.size()
+       << " coloured points off the ground: expected a card before a cloth in view of the camera";
     throw core::Error("measure_card_band", os.str());
   }
-  const Plane plane = *card_plane;
-  auto card_colour = [&](double intensity) { return (intensity > m.intensity_threshold) == m.card_is_bright; };
+  for (Plane* p : {&*first, &*second}) {
+    if (p->normal.dot(p->point) > 0.0) p->normal = -p->normal;  // towards the LIDAR
+  }
+  const bool first_is_card = std::abs(first->normal.dot(first->point)) < std::abs(second->normal.dot(second->point));
+  const Plane plane = first_is_card ? *first : *second;
+  const Plane cloth = first_is_card ? *second : *first;
+  core::log_debug("measure_card_band: card plane at ", std::abs(plane.normal.dot(plane.point)), " m, cloth plane at ",
+                  std::abs(cloth.normal.dot(cloth.point)), " m");
 
   // Card axes: x right and y up as seen from the LIDAR.
   Eigen::Vector3d x_axis = Eigen::Vector3d::UnitZ().cross(plane.normal);
   x_axis.normalize();
   const Eigen::Vector3d y_axis = plane.normal.cross(x_axis);
 
-  // Every point on the card plane along its LIDAR ray, in card coordinates.
-  const std::size_t n = points_lidar.size();
-  std::vector<Eigen::Vector2d> xy(n);
+  // Every point on the card plane along its LIDAR ray, in card coordinates; geometric class:
+  // on the card, on the cloth, or between them (LIDAR mixed pixels at the card's edges: a
+  // beam straddling the edge returns a range in between; they are neither and are ignored).
+  std::vector<Eigen::Vector2d> xy(n, Eigen::Vector2d::Zero());
   std::vector<int> geometry(n, 0);  // 1 card, -1 background, 0 neither
+  std::vector<char> between(n, 0);
   const double plane_offset = plane.normal.dot(plane.point);
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d& p = points_lidar[i];
+    if (ground[i]) continue;
     const double n_dot_p = plane.normal.dot(p);
     if (std::abs(n_dot_p) < 1e-9 || !std::isfinite(n_dot_p)) continue;
     const double s = plane_offset / n_dot_p;
@@ -208,50 +219,53 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
     const Eigen::Vector3d q = s * p - plane.point;
     xy[i] = Eigen::Vector2d(q.dot(x_axis), q.dot(y_axis));
     const double d = plane.distance(p);
-    geometry[i] = std::abs(d) <= options.card_plane_tolerance_m ? 1 : (d < 0.0 ? -1 : 0);
+    if (std::abs(d) <= tol) {
+      geometry[i] = 1;
+    } else if (std::abs(cloth.distance(p)) <= tol) {
+      geometry[i] = -1;
+    } else {
+      between[i] = d < 0.0 && cloth.distance(p) > 0.0;
+    }
   }
 
-  // Card extent: the card points near the bright points (robust extent of the bright points
-  // on the plane, widened by the strip so that mis-coloured card points are included).
+  // Card extent: robust extent of the card points, widened by the strip.
   std::vector<double> bx, by;
   for (std::size_t i = 0; i < n; ++i) {
-    if (geometry[i] == 1 && std::isfinite(intensities[i]) && card_colour(intensities[i])) {
+    if (geometry[i] == 1 && std::isfinite(intensities[i])) {
       bx.push_back(xy[i].x());
       by.push_back(xy[i].y());
     }
   }
-  if (bx.size() < 20) throw core::Error("measure_card_band", "fewer than 20 card-coloured points lie on the card plane");
+  if (bx.size() < 20) throw core::Error("measure_card_band", "fewer than 20 coloured points lie on the card plane");
   const double roi_x0 = quantile(bx, 0.005) - options.edge_strip_m, roi_x1 = quantile(bx, 0.995) + options.edge_strip_m;
   const double roi_y0 = quantile(by, 0.005) - options.edge_strip_m, roi_y1 = quantile(by, 0.995) + options.edge_strip_m;
   auto in_roi = [&](const Eigen::Vector2d& v) {
     return v.x() >= roi_x0 && v.x() <= roi_x1 && v.y() >= roi_y0 && v.y() <= roi_y1;
   };
-  // Background: the plane behind the card (the cloth). Points between the two planes are
-  // LIDAR mixed pixels (a beam straddling the card edge returns a range in between); they are
-  // neither card nor cloth and are left out rather than counted as mis-coloured background.
-  {
-    std::vector<Eigen::Vector3d> behind;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (geometry[i] == -1 && in_roi(xy[i])) behind.push_back(points_lidar[i]);
-    }
-    std::optional<Plane> cloth;
-    if (behind.size() >= 20) {
-      cloth = ransac_plane(behind, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations, options.seed + 1);
-    }
-    std::size_t on_cloth = 0;
-    if (cloth) {
-      for (const auto& p : behind) on_cloth += std::abs(cloth->distance(p)) <= options.card_plane_tolerance_m;
-    }
-    // Use the cloth plane only if it explains most of the background (a planar cloth).
-    if (cloth && on_cloth >= behind.size() / 2) {
-      for (std::size_t i = 0; i < n; ++i) {
-        if (geometry[i] == -1 && std::abs(cloth->distance(points_lidar[i])) > options.card_plane_tolerance_m) {
-          geometry[i] = 0;
-          m.mixed_points += in_roi(xy[i]);
-        }
-      }
-    }
+  for (std::size_t i = 0; i < n; ++i) m.mixed_points += between[i] && in_roi(xy[i]);
+
+  // Colour classes from the two surfaces' own colours near the card: the threshold is halfway
+  // between the median card colour and the median cloth colour (bands are a minority of both).
+  std::vector<double> card_colours, cloth_colours;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(intensities[i]) || !in_roi(xy[i])) continue;
+    if (geometry[i] == 1) card_colours.push_back(intensities[i]);
+    if (geometry[i] == -1) cloth_colours.push_back(intensities[i]);
   }
+  if (cloth_colours.size() < 10) {
+    throw core::Error("measure_card_band", "fewer than 10 cloth points around the card: expected a background around it");
+  }
+  const double card_median = quantile(card_colours, 0.5), cloth_median = quantile(cloth_colours, 0.5);
+  if (card_median == cloth_median) {
+    std::ostringstream os;
+    os << "card and cloth have the same median colour (" << card_median << "): no contrast to measure a band";
+    throw core::Error("measure_card_band", os.str());
+  }
+  m.card_is_bright = card_median > cloth_median;
+  m.intensity_threshold = 0.5 * (card_median + cloth_median);
+  core::log_debug("measure_card_band: card colour ", card_median, ", cloth colour ", cloth_median, ", threshold ",
+                  m.intensity_threshold);
+  auto card_colour = [&](double intensity) { return (intensity > m.intensity_threshold) == m.card_is_bright; };
 
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -269,32 +283,27 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
   m.card_y_lidar = y_axis;
   m.card_range_m = m.card_centre_lidar.norm();
 
-  // Point density on the card, away from every band.
-  const double inset = std::max(options.edge_strip_m, options.corner_margin_m);
-  const double interior_w = (x1 - x0) - 2.0 * inset, interior_h = (y1 - y0) - 2.0 * inset;
-  if (!(interior_w > 0.0 && interior_h > 0.0)) {
+  if (!(m.card_size_m.x() > 2.0 * options.corner_margin_m && m.card_size_m.y() > 2.0 * options.corner_margin_m)) {
     std::ostringstream os;
-    os << "card of " << m.card_size_m.x() << " x " << m.card_size_m.y() << " m is too small for edge_strip_m = "
-       << options.edge_strip_m << " and corner_margin_m = " << options.corner_margin_m;
+    os << "card of " << m.card_size_m.x() << " x " << m.card_size_m.y() << " m leaves no edge to measure once "
+       << "corner_margin_m = " << options.corner_margin_m << " is cut off both ends";
     throw core::Error("measure_card_band", os.str());
   }
   // Point density from the local sampling lattice rather than from a count in a window:
   // a count is quantised by whole scan lines / beams (+-15 % at 15 m), the lattice is not.
-  // For each interior card point, a = nearest card point roughly along x, b = roughly along
-  // y; |a x b| is the area of its lattice cell; the median over points is robust to noise.
-  std::vector<Eigen::Vector2d> card_xy, interior_xy;
+  // For each card point, a = nearest card point roughly along x (either side), b = roughly
+  // along y; |a x b| is the area of its lattice cell; the median over points is robust to
+  // noise and to the card's border (a border point still has neighbours on one side).
+  std::vector<Eigen::Vector2d> card_xy;
   for (std::size_t i = 0; i < n; ++i) {
     if (geometry[i] != 1 || !in_roi(xy[i])) continue;
     card_xy.push_back(xy[i]);
     if (std::isfinite(intensities[i])) ++m.card_points;
-    const Eigen::Vector2d& v = xy[i];
-    if (v.x() > x0 + inset && v.x() < x1 - inset && v.y() > y0 + inset && v.y() < y1 - inset) interior_xy.push_back(v);
   }
   for (std::size_t i = 0; i < n; ++i) m.background_points += geometry[i] == -1 && std::isfinite(intensities[i]) && in_roi(xy[i]);
-  if (interior_xy.size() < 10) throw core::Error("measure_card_band", "fewer than 10 points inside the card: too sparse to measure");
   const double kCone = std::tan(30.0 * M_PI / 180.0);  // "roughly along an axis"
   std::vector<double> cell_areas;
-  for (const auto& p : interior_xy) {
+  for (const auto& p : card_xy) {
     Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();
     double best_a = std::numeric_limits<double>::infinity(), best_b = best_a;
     for (const auto& q : card_xy) {

@@ -6,21 +6,23 @@
 /// measured its width by hand in CloudCompare, this measures it automatically.
 ///
 /// Measurement (measure_card_band):
-///  1. colour class of every point: bright or dark, split at the Otsu threshold of the
-///     sampled intensities;
-///  2. card plane: RANSAC + least squares on the points of each colour class; the card is
-///     the nearer upright plane (white before black in RGB; in a thermal image the card may be
-///     the darker one). Geometric class: card = within card_plane_tolerance_m of that plane,
-///     background = on the plane behind it (the cloth, when planar; else anything behind).
-///     Points in between are LIDAR mixed pixels at the card's edges and are ignored;
-///  3. every point is moved along its LIDAR ray onto the card plane (so card and cloth points
+///  0. the ground plane (RANSAC on near-horizontal planes) is removed: a vertical plane cuts
+///     a strip of ground that can hold more points than a distant card;
+///  1. geometry: the largest upright plane (RANSAC + least squares) and the largest among the
+///     points off it are the cloth and the card, the nearer one being the card. Points on
+///     neither (between them) are LIDAR mixed pixels at the card's edges and are ignored;
+///  2. every point is moved along its LIDAR ray onto the card plane (so card and cloth points
 ///     have the same density there) and expressed in card coordinates: x to the right and
 ///     y up as seen from the LIDAR, origin at the card's centre;
+///  3. colour class: card-coloured when the sampled intensity is on the card's side of the
+///     midpoint between the median card and the median cloth intensity around the card
+///     (the card may be the darker one, e.g. in a thermal image at night);
 ///  4. for each edge, the points in a strip across it (away from the corners) whose colour
 ///     class disagrees with their geometric class are counted. A colour pattern shifted by d
 ///     across an edge mis-colours on average d * length * density points, so the band width
-///     is that count / (density * edge length): unbiased even when d is smaller than the
-///     point spacing (which is ~6.5 cm at 15 m for 0.25 deg beams).
+///     is that count / (density * edge length), the density coming from the local sampling
+///     lattice: unbiased even when d is smaller than the point spacing (which is ~6.5 cm at
+///     15 m for 0.25 deg beams).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <array>
@@ -99,10 +101,11 @@ struct CardBandMeasurement {
   Eigen::Vector2d card_size_m = Eigen::Vector2d::Zero();        ///< extent of the card points
   double card_range_m = 0.0;  ///< distance from the LIDAR origin to the card centre [m]
   double density_per_m2 = 0.0;  ///< card points per square metre of card
-  double intensity_threshold = 0.0;  ///< Otsu split between dark and bright
+  double intensity_threshold = 0.0;  ///< split between card and cloth colours
   bool card_is_bright = true;        ///< the card's colour class (thermal: may be dark)
   int card_points = 0, background_points = 0, coloured_points = 0;
   int mixed_points = 0;  ///< points between card and cloth (LIDAR mixed pixels), ignored
+  int ground_points = 0;  ///< points on the ground plane, removed before anything else
   std::array<EdgeBand, 4> edges;  ///< left, right, bottom, top
   /// Card extent in card coordinates [m] (x0, x1, y0, y1: extreme card points).
   double x0_m = 0.0, x1_m = 0.0, y0_m = 0.0, y1_m = 0.0;
