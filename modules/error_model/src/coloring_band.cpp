@@ -141,6 +141,8 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
         coloured.size() >= 20 ? ransac_plane(coloured, 0.5 * options.card_plane_tolerance_m, options.ransac_iterations,
                                              options.seed + 2, PlaneKind::kGround)
                               : std::nullopt;
+    // Only points within half the plane tolerance of the ground are removed: a card standing
+    // close above the ground keeps the cloth points of its bottom band.
     // A horizontal plane through a scan line of card and cloth also holds many points; the
     // ground is below the sensor and its points spread over a wide range of distances.
     std::vector<double> floor_ranges;
@@ -155,7 +157,7 @@ CardBandMeasurement measure_card_band(const std::vector<Eigen::Vector3d>& points
                         quantile(floor_ranges, 0.9) - quantile(floor_ranges, 0.1) > kMinGroundSpreadM;
     if (below && spread) {
       for (std::size_t i = 0; i < n; ++i) {
-        if (std::abs(floor->distance(points_lidar[i])) <= options.card_plane_tolerance_m) {
+        if (std::abs(floor->distance(points_lidar[i])) <= 0.5 * options.card_plane_tolerance_m) {
           ground[i] = 1;
           ++m.ground_points;
         }

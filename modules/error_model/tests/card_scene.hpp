@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -31,22 +32,37 @@ struct Scene {
     card_u = Eigen::Vector3d(0.0, -std::cos(roll), std::sin(roll));
     card_v = Eigen::Vector3d(0.0, std::sin(roll), std::cos(roll));
   }
+  /// Optional ground plane z = ground_z_m (pavement), as in rgbdt_sim's coloring setup.
+  bool ground = false;
+  double ground_z_m = -1.1;
+  float ground_colour = 120.0f;
+
   /// Colour seen along the ray origin + s dir (first hit), or nothing (false).
   bool cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, Eigen::Vector3d* hit, float* colour) const {
-    if (dir.x() <= 0.0) return false;
-    const double s_card = (depth_m - origin.x()) / dir.x();
-    const Eigen::Vector3d c = origin + s_card * dir;
-    const Eigen::Vector3d d = c - card_centre;
-    if (std::abs(d.dot(card_u)) <= half_w && std::abs(d.dot(card_v)) <= half_h) {
-      *hit = c;
-      *colour = card_colour;
-      return true;
+    double best = std::numeric_limits<double>::infinity();
+    if (ground && dir.z() < 0.0) {
+      const double s = (ground_z_m - origin.z()) / dir.z();
+      if (s > 0.0) {
+        best = s;
+        *colour = ground_colour;
+      }
     }
-    const double s_cloth = (depth_m + gap_m - origin.x()) / dir.x();
-    const Eigen::Vector3d b = origin + s_cloth * dir;
-    if (std::abs(b.y() - card_centre.y()) > 2.5 || std::abs(b.z() - card_centre.z()) > 2.0) return false;
-    *hit = b;
-    *colour = cloth_colour;
+    if (dir.x() > 0.0) {
+      const double s_card = (depth_m - origin.x()) / dir.x();
+      const Eigen::Vector3d d = origin + s_card * dir - card_centre;
+      if (s_card < best && std::abs(d.dot(card_u)) <= half_w && std::abs(d.dot(card_v)) <= half_h) {
+        best = s_card;
+        *colour = card_colour;
+      }
+      const double s_cloth = (depth_m + gap_m - origin.x()) / dir.x();
+      const Eigen::Vector3d b = origin + s_cloth * dir;
+      if (s_cloth < best && std::abs(b.y() - card_centre.y()) <= 2.5 && std::abs(b.z() - card_centre.z()) <= 2.0) {
+        best = s_cloth;
+        *colour = cloth_colour;
+      }
+    }
+    if (!std::isfinite(best)) return false;
+    *hit = origin + best * dir;
     return true;
   }
 };
@@ -124,13 +140,13 @@ inline std::vector<Eigen::Vector3d> scan(const Scene& scene, unsigned seed, bool
       if (std::abs(yaw - yaw_c) > half_yaw) continue;
       const Eigen::Vector3d dir(std::cos(pitch) * std::cos(yaw), std::cos(pitch) * std::sin(yaw), std::sin(pitch));
       Eigen::Vector3d hit;
-      float colour;
+      float colour = 0.0f;
       if (!scene.cast(Eigen::Vector3d::Zero(), dir, &hit, &colour)) continue;
       if (mixed_pixels) {
         const double next = yaw + 0.25 * kDeg;
         const Eigen::Vector3d dir2(std::cos(pitch) * std::cos(next), std::cos(pitch) * std::sin(next), std::sin(pitch));
         Eigen::Vector3d hit2;
-        float colour2;
+        float colour2 = 0.0f;
         if (scene.cast(Eigen::Vector3d::Zero(), dir2, &hit2, &colour2) && colour2 != colour) {
           const double r1 = hit.norm(), r2 = hit2.norm();
           points.push_back(dir * (r1 + std::uniform_real_distribution<double>(0.1, 0.9)(rng) * (r2 - r1)));

@@ -79,6 +79,29 @@ TEST(ColoringBand, IgnoresMixedPixelsBetweenCardAndCloth) {
   EXPECT_NEAR(m.band_y_m, std::abs(offset.dot(scene.card_v)), 0.2 * 10.0 * 0.2 * kDeg + half_pixel);
 }
 
+TEST(ColoringBand, IgnoresTheGroundEvenWhenItOutnumbersTheCard) {
+  // rgbdt_sim's setup stands the card on a pavement 1.1 m below the LIDAR: a vertical plane
+  // cuts a strip of pavement holding more points than a card at 12 m.
+  const core::PinholeCamera camera = rgb_camera();
+  const Eigen::Isometry3d T_true = true_T_camera_lidar();
+  core::Vector6d dv;
+  dv << 0.3 * kDeg, 0.25 * kDeg, 0.1 * kDeg, 0.01, 0.0, 0.0;
+  const Eigen::Isometry3d T_est = core::from_vector6(dv) * T_true;
+  Scene scene(12.0);
+  scene.card_centre.z() = -0.5;
+  scene.ground = true;
+  const GrayImage image = render(scene, camera, T_true);
+  const auto points = scan(scene, 4);
+  const CardBandMeasurement m = measure_card_band(points, sample_point_intensities(points, camera, T_est, image));
+  EXPECT_GT(m.ground_points, 200);
+  EXPECT_NEAR(m.card_range_m, scene.card_centre.norm(), 0.05);
+  const Eigen::Vector3d offset =
+      colour_source_offset(scene.card_centre, -Eigen::Vector3d::UnitX(), camera, T_true, camera, T_est);
+  const double half_pixel = 0.5 * 12.0 / camera.intrinsics().fx;  // tolerance as above
+  EXPECT_NEAR(m.band_x_m, std::abs(offset.dot(scene.card_u)), 0.2 * 12.0 * 0.25 * kDeg + half_pixel);
+  EXPECT_NEAR(m.band_y_m, std::abs(offset.dot(scene.card_v)), 0.2 * 12.0 * 0.2 * kDeg + half_pixel);
+}
+
 TEST(ColoringBand, FindsACardThatIsDarkerThanTheCloth) {
   // In a thermal image the card may be colder than the cloth: same geometry, colours swapped.
   const core::PinholeCamera camera = rgb_camera();
