@@ -186,7 +186,8 @@ TEST(ColoringSetup, CardPointsLieAtEachDepthAndFramesShareTheCloudTimes) {
     EXPECT_DOUBLE_EQ(gt["coloring_setup"]["views"][i]["depth_m"].as<double>(), o.depths_m[i]);
     // Points in front of the card's footprint lie on the card plane x = depth (within 5 sigma).
     int on_card = 0;
-    for (const auto& p : *cloud::load_pcd(clouds[i].file).cloud) {
+    const cloud::LoadedCloud loaded = cloud::load_pcd(clouds[i].file);  // owns the points while we loop
+    for (const auto& p : *loaded.cloud) {
       if (std::abs(p.y) < 0.4 && std::abs(p.z) < 0.25 && p.x < o.depths_m[i] + 0.5) {
         EXPECT_NEAR(p.x, o.depths_m[i], 0.05);
         ++on_card;
