@@ -8,6 +8,7 @@
 // --quick runs only every fourth row (for a smoke test).
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <optional>
 #include <vector>
@@ -40,6 +41,7 @@ Outcome run(const std::vector<ext::TargetView>& views, const rgbdt::core::Pinhol
   ext::EdgeAlignmentOptions options;
   options.method = method;
   options.compute_covariance = false;
+  if (const char* h = std::getenv("RGBDT_BENCH_HUBER")) options.huber_px = std::atof(h);
   std::optional<Eigen::Isometry3d> guess;
   if (!row.no_guess) guess = t::offset_guess(truth, row.roll, row.pitch, row.yaw, row.tx, row.ty, row.tz);
   Outcome out;
@@ -48,6 +50,9 @@ Outcome run(const std::vector<ext::TargetView>& views, const rgbdt::core::Pinhol
     const ext::EdgeAlignmentResult r = ext::align_edges(views, camera, options, guess);
     out.time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     out.errors = t::table1_errors(r.T_camera_lidar, truth);
+    if (std::getenv("RGBDT_BENCH_VERBOSE"))
+      std::printf("  [%s] %d iterations, rms %.3f px, %s\n", ext::to_string(method).c_str(),
+                  r.iterations, r.rms_px, r.message.c_str());
     out.ok = out.errors.head<3>().maxCoeff() < kMaxRotErrDeg &&
              out.errors.tail<3>().maxCoeff() < kMaxTransErrCm;
   } catch (const std::exception& e) {

@@ -75,11 +75,10 @@ void transform_point(const T* x, const Eigen::Vector3d& p_lidar, T* p_camera) {
   p_camera[2] += x[5];
 }
 
-template <typename T>
-T clamp_jet(const T& value, double lo, double hi) {
-  if (value < T(lo)) return T(lo);
-  if (value > T(hi)) return T(hi);
-  return value;
+inline double value_of(double x) { return x; }
+template <typename J>
+double value_of(const J& jet) {
+  return jet.a;
 }
 
 /// Field of one view, ready for the cost functions.
@@ -95,27 +94,129 @@ struct SmoothView {
 };
 
 /// Eq. (2) for one LIDAR circle point, ours: the 2-vector from the edge to the projection
-/// (its norm is the distance), bicubic in the exact field, continued outside the grid.
+/// (its norm is the distance): bicubic in the exact field near the edges, the exact
+/// nearest-edge form further away.
 struct SmoothEdgeResidual {
   SmoothEdgeResidual(const ProjectionModel* cam, const SmoothView* view, Eigen::Vector3d p)
       : cam_(cam), view_(view), p_lidar_(std::move(p)) {}
   template <typename T>
   bool operator()(const T* x, T* residual) const {
-    T p_camera[3], uv[2];
+    T p_camera[3];
     transform_point(x, p_lidar_, p_camera);
+    return from_camera_point(p_camera, residual);
+  }
+  template <typename T>
+  bool from_camera_point(const T* p_camera, T* residual) const {
+    T uv[2];
     detail::project_total(*cam_, p_camera, uv);
     const EdgeDistanceField& f = view_->field;
-    const T u = clamp_jet(uv[0], f.col_begin(), f.col_begin() + f.cols() - 1);
-    const T v = clamp_jet(uv[1], f.row_begin(), f.row_begin() + f.rows() - 1);
-    T offset[2];
-    view_->interpolator.Evaluate(v, u, offset);
-    residual[0] = offset[0] + (uv[0] - u);
-    residual[1] = offset[1] + (uv[1] - v);
+    const double u = value_of(uv[0]), v = value_of(uv[1]);
+    if (f.in_band(u, v)) {
+      view_->interpolator.Evaluate(uv[1], uv[0], residual);
+      return true;
+    }
+    Eigen::Vector2d p, n;
+    f.nearest_edge({u, v}, &p, &n);
+    const T du = uv[0] - T(p.x()), dv = uv[1] - T(p.y());
+    if (n.squaredNorm() > 0.5) {
+      const T along = du * T(n.x()) + dv * T(n.y());
+      residual[0] = along * T(n.x());
+      residual[1] = along * T(n.y());
+    } else {
+      residual[0] = du;
+      residual[1] = dv;
+    }
     return true;
   }
   const ProjectionModel* cam_;
   const SmoothView* view_;
   Eigen::Vector3d p_lidar_;
+};
+
+/// All points of one view in one cost function (Ceres' per-block overhead dominated with
+/// one block per point). The Huber loss is folded into the residual, r' = r sqrt(rho(s)/s)
+/// with s = |r|^2, so that |r'|^2 = rho(s): the same objective as a per-point
+/// ceres::HuberLoss, differentiated exactly through the jets.
+class ViewEdgeCost : public ceres::CostFunction {
+ public:
+  ViewEdgeCost(const ProjectionModel* cam, const SmoothView* view,
+               const std::vector<Eigen::Vector3d>* points, double huber_px)
+      : cam_(cam), view_(view), points_(points), huber_px_(huber_px) {
+    set_num_residuals(2 * static_cast<int>(points->size()));
+    mutable_parameter_block_sizes()->push_back(6);
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const double* x = parameters[0];
+    const size_t n = points_->size();
+    if (jacobians == nullptr || jacobians[0] == nullptr) {
+      for (size_t i = 0; i < n; ++i) {
+        SmoothEdgeResidual(cam_, view_, (*points_)[i])(x, residuals + 2 * i);
+        apply_huber(residuals + 2 * i);
+      }
+      return true;
+    }
+    using Jet = ceres::Jet<double, 6>;
+    Jet xj[6];
+    for (int k = 0; k < 6; ++k) xj[k] = Jet(x[k], k);
+    // The rotation once per evaluation, not once per point (sin/cos of jets are costly).
+    Jet R[9];
+    ceres::AngleAxisToRotationMatrix(xj, ceres::RowMajorAdapter3x3(R));
+    double* J = jacobians[0];  // row-major (2n x 6)
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d& p = (*points_)[i];
+      Jet pc[3], r[2];
+      for (int a = 0; a < 3; ++a) pc[a] = R[3 * a] * p.x() + R[3 * a + 1] * p.y() + R[3 * a + 2] * p.z() + xj[3 + a];
+      SmoothEdgeResidual(cam_, view_, p).from_camera_point(pc, r);
+      apply_huber(r);
+      for (int j = 0; j < 2; ++j) {
+        residuals[2 * i + j] = r[j].a;
+        for (int k = 0; k < 6; ++k) J[(2 * i + j) * 6 + k] = r[j].v[k];
+      }
+    }
+    return true;
+  }
+
+ private:
+  template <typename T>
+  void apply_huber(T* r) const {
+    if (huber_px_ <= 0.0) return;
+    using std::sqrt;
+    const T s = r[0] * r[0] + r[1] * r[1];
+    const double delta2 = huber_px_ * huber_px_;
+    if (value_of(s) <= delta2) return;
+    // rho(s) = 2 delta sqrt(s) - delta^2 beyond delta^2.
+    const T norm = sqrt(s);
+    const T scale = sqrt((T(2.0 * huber_px_) * norm - T(delta2)) / s);
+    r[0] *= scale;
+    r[1] *= scale;
+  }
+  const ProjectionModel* cam_;
+  const SmoothView* view_;
+  const std::vector<Eigen::Vector3d>* points_;
+  double huber_px_;
+};
+
+/// Coarse stage: hole centres projected against the ellipse centres. Its basin is wide
+/// (a PnP refinement), so it brings a poor guess near enough for Eq. (2), whose
+/// nearest-edge attraction alone can shrink a far-off circle onto the near side of its
+/// image (a local minimum along the optical axis).
+struct CenterResidual {
+  CenterResidual(const ProjectionModel* cam, Eigen::Vector3d c, Eigen::Vector2d px)
+      : cam_(cam), center_(std::move(c)), px_(std::move(px)) {}
+  template <typename T>
+  bool operator()(const T* x, T* residual) const {
+    T p_camera[3], uv[2];
+    transform_point(x, center_, p_camera);
+    detail::project_total(*cam_, p_camera, uv);
+    residual[0] = uv[0] - T(px_.x());
+    residual[1] = uv[1] - T(px_.y());
+    return true;
+  }
+  const ProjectionModel* cam_;
+  Eigen::Vector3d center_;
+  Eigen::Vector2d px_;
 };
 
 /// The paper's look-up table (Sec. 3.6): distance transform of the rasterised edges and,
@@ -336,35 +437,55 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   }
 
   core::Vector6d x = core::to_vector6(result.T_camera_lidar_initial);
+  if (options.coarse_center_stage && !paper) {
+    ceres::Problem problem;
+    int holes = 0;
+    for (size_t k : usable_index) {
+      const TargetView& v = views[k];
+      const size_t n = std::min(v.lidar_centers.size(), v.image_ellipses.size());
+      for (size_t h = 0; h < n; ++h) {
+        const Eigen::Vector2d px(v.image_ellipses[h].center.x, v.image_ellipses[h].center.y);
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CenterResidual, 2, 6>(
+                                     new CenterResidual(&cam, v.lidar_centers[h], px)),
+                                 new ceres::HuberLoss(20.0), x.data());
+        ++holes;
+      }
+    }
+    if (holes >= 3) {  // fewer leave the pose unconstrained; go straight to Eq. (2)
+      ceres::Solver::Options o;
+      o.linear_solver_type = ceres::DENSE_QR;
+      o.max_num_iterations = 50;
+      o.logging_type = ceres::SILENT;
+      ceres::Solver::Summary s;
+      ceres::Solve(o, &problem, &s);
+      result.iterations += s.num_successful_steps + s.num_unsuccessful_steps;
+    }
+  }
   std::vector<bool> active(usable_index.size(), true);
   ceres::Solver::Summary summary;
   std::ostringstream message;
   for (int round = 0;; ++round) {
     ceres::Problem::Options problem_options;
-    problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     ceres::Problem problem(problem_options);
-    std::unique_ptr<ceres::LossFunction> loss;
-    if (!paper && options.huber_px > 0.0) loss = std::make_unique<ceres::HuberLoss>(options.huber_px);
     for (size_t k = 0; k < usable_index.size(); ++k) {
       if (!active[k]) continue;
-      for (const auto& p : views[usable_index[k]].lidar_circle_points) {
-        if (paper) {
+      const auto& points = views[usable_index[k]].lidar_circle_points;
+      if (paper) {
+        for (const auto& p : points) {
           problem.AddResidualBlock(
               new ceres::NumericDiffCostFunction<PaperEdgeResidual, ceres::CENTRAL, 1, 6>(
                   new PaperEdgeResidual(&cam, luts[k].get(), p)),
               nullptr, x.data());
-        } else {
-          problem.AddResidualBlock(
-              new ceres::AutoDiffCostFunction<SmoothEdgeResidual, 2, 6>(
-                  new SmoothEdgeResidual(&cam, fields[k].get(), p)),
-              loss.get(), x.data());
         }
+      } else {
+        problem.AddResidualBlock(new ViewEdgeCost(&cam, fields[k].get(), &points, options.huber_px),
+                                 nullptr, x.data());
       }
     }
     ceres::Solver::Options solver_options;
     solver_options.minimizer_type = ceres::TRUST_REGION;
     solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-    solver_options.linear_solver_type = ceres::DENSE_QR;
+    solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
     solver_options.max_num_iterations = options.max_iterations;
     solver_options.function_tolerance = options.function_tolerance;
     solver_options.parameter_tolerance = options.parameter_tolerance;
@@ -455,11 +576,9 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     ceres::Problem problem;
     for (size_t k = 0; k < usable_index.size(); ++k) {
       if (!active[k]) continue;
-      for (const auto& p : views[usable_index[k]].lidar_circle_points) {
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SmoothEdgeResidual, 2, 6>(
-                                     new SmoothEdgeResidual(&cam, fields[k].get(), p)),
-                                 nullptr, x.data());
-      }
+      problem.AddResidualBlock(
+          new ViewEdgeCost(&cam, fields[k].get(), &views[usable_index[k]].lidar_circle_points, 0.0),
+          nullptr, x.data());
     }
     ceres::Covariance::Options cov_options;
     cov_options.algorithm_type = ceres::DENSE_SVD;

@@ -6,15 +6,28 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
 
 namespace rgbdt::extrinsics {
 
+namespace {
+
+// Tangent-line offset, except beyond the end of an open edge, where the tangent line would
+// continue the edge into empty space, and at isolated points (zero normal).
+Eigen::Vector2d offset_from(const Eigen::Vector2d& x, const Eigen::Vector2d& p,
+                            const Eigen::Vector2d& n, double tangent_reach_px) {
+  const Eigen::Vector2d d = x - p;
+  if (n.squaredNorm() < 0.5) return d;
+  if (std::abs(d.x() * -n.y() + d.y() * n.x()) > tangent_reach_px) return d;
+  return d.dot(n) * n;
+}
+
+}  // namespace
+
 std::string EdgeFieldOptions::validate() const {
   std::ostringstream os;
-  if (!(margin_px >= 2.0)) os << "margin_px = " << margin_px << ", expected >= 2; ";
+  if (!(band_px >= 5.0)) os << "band_px = " << band_px << ", expected >= 5; ";
   if (!(normal_radius_px > 0.5)) os << "normal_radius_px = " << normal_radius_px << ", expected > 0.5; ";
   if (max_nodes < 16) os << "max_nodes = " << max_nodes << ", expected >= 16; ";
   return os.str();
@@ -36,14 +49,15 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  col_begin_ = static_cast<int>(std::floor(lo.x() - options.margin_px));
-  row_begin_ = static_cast<int>(std::floor(lo.y() - options.margin_px));
-  cols_ = static_cast<int>(std::ceil(hi.x() + options.margin_px)) - col_begin_ + 1;
-  rows_ = static_cast<int>(std::ceil(hi.y() + options.margin_px)) - row_begin_ + 1;
+  const double margin = options.band_px + 2.0;
+  col_begin_ = static_cast<int>(std::floor(lo.x() - margin));
+  row_begin_ = static_cast<int>(std::floor(lo.y() - margin));
+  cols_ = static_cast<int>(std::ceil(hi.x() + margin)) - col_begin_ + 1;
+  rows_ = static_cast<int>(std::ceil(hi.y() + margin)) - row_begin_ + 1;
   if (static_cast<long>(cols_) * rows_ > options.max_nodes) {
     std::ostringstream os;
     os << "EdgeDistanceField: edge points span " << cols_ << " x " << rows_
-       << " px with the margin, more than max_nodes = " << options.max_nodes
+       << " px with the band, more than max_nodes = " << options.max_nodes
        << " (stray edge points far from the target?)";
     throw std::invalid_argument(os.str());
   }
@@ -51,14 +65,12 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
 
   // Bucket the points by their nearest grid pixel (linked lists over the grid).
   std::vector<int> head(static_cast<size_t>(cols_) * rows_, -1), next(n, -1);
-  cv::Mat seeds(rows_, cols_, CV_8U, cv::Scalar(255));
   for (int i = 0; i < n; ++i) {
     const int c = static_cast<int>(std::lround(edge_points_px[i].x())) - col_begin_;
     const int r = static_cast<int>(std::lround(edge_points_px[i].y())) - row_begin_;
     const size_t idx = static_cast<size_t>(r) * cols_ + c;
     next[i] = head[idx];
     head[idx] = i;
-    seeds.at<uint8_t>(r, c) = 0;
   }
   auto for_points_near = [&](int c0, int r0, int reach, auto&& fn) {
     for (int r = std::max(0, r0 - reach); r <= std::min(rows_ - 1, r0 + reach); ++r) {
@@ -94,61 +106,79 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     normals[i] = eig.eigenvectors().col(0);
   }
 
-  // Nearest seed pixel of every node (Voronoi labels of the distance transform), then the
-  // nearest sub-pixel point among the seeds around it.
-  cv::Mat dist, labels;
-  cv::distanceTransform(seeds, dist, labels, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-  std::vector<Eigen::Vector2i> label_pixel(static_cast<size_t>(n) + 2, Eigen::Vector2i(-1, -1));
-  for (int r = 0; r < rows_; ++r) {
-    for (int c = 0; c < cols_; ++c) {
-      if (seeds.at<uint8_t>(r, c) == 0) {
-        const int label = labels.at<int>(r, c);
-        if (label >= static_cast<int>(label_pixel.size())) label_pixel.resize(label + 1, {-1, -1});
-        label_pixel[label] = {c, r};
+  // Exact nearest edge point of every node within band_px of an edge: each point claims
+  // the nodes of its (2 band + 1)^2 square that it is nearest to.
+  std::vector<int> nearest(static_cast<size_t>(cols_) * rows_, -1);
+  std::vector<float> nearest_d2(nearest.size(), std::numeric_limits<float>::infinity());
+  const int band = static_cast<int>(std::ceil(options.band_px));
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector2d& p = edge_points_px[i];
+    const int c0 = static_cast<int>(std::lround(p.x())) - col_begin_;
+    const int r0 = static_cast<int>(std::lround(p.y())) - row_begin_;
+    for (int r = std::max(0, r0 - band); r <= std::min(rows_ - 1, r0 + band); ++r) {
+      const double dy = r + row_begin_ - p.y();
+      for (int c = std::max(0, c0 - band); c <= std::min(cols_ - 1, c0 + band); ++c) {
+        const double dx = c + col_begin_ - p.x();
+        const float d2 = static_cast<float>(dx * dx + dy * dy);
+        const size_t idx = static_cast<size_t>(r) * cols_ + c;
+        if (d2 < nearest_d2[idx]) {
+          nearest_d2[idx] = d2;
+          nearest[idx] = i;
+        }
       }
     }
   }
-  data_.assign(static_cast<size_t>(cols_) * rows_ * 2, 0.0f);
+  // A node is "inner" when the whole 4x4 bicubic stencil around it lies in the band.
+  const float inner_d2 = static_cast<float>((options.band_px - 3.0) * (options.band_px - 3.0));
+  data_.assign(nearest.size() * 2, 0.0f);
+  inner_.assign(nearest.size(), 0);
+  tangent_reach_px_ = options.normal_radius_px;
   for (int r = 0; r < rows_; ++r) {
     for (int c = 0; c < cols_; ++c) {
+      const size_t idx = static_cast<size_t>(r) * cols_ + c;
+      const int best = nearest[idx];
+      if (best < 0) continue;
       const Eigen::Vector2d x(c + col_begin_, r + row_begin_);
-      const int label = labels.at<int>(r, c);
-      const Eigen::Vector2i seed = label_pixel[label];
-      int best = -1;
-      double best_d2 = std::numeric_limits<double>::infinity();
-      for_points_near(seed.x(), seed.y(), 2, [&](int j) {
-        const double d2 = (x - edge_points_px[j]).squaredNorm();
-        if (d2 < best_d2) {
-          best_d2 = d2;
-          best = j;
-        }
-      });
-      Eigen::Vector2d offset = x - edge_points_px[best];
-      const Eigen::Vector2d& nrm = normals[best];
-      if (nrm.squaredNorm() > 0.5) {
-        // Tangent-line distance, except beyond the end of an open edge where the tangent
-        // line would continue the edge into empty space.
-        const Eigen::Vector2d tangent(-nrm.y(), nrm.x());
-        if (std::abs(offset.dot(tangent)) <= options.normal_radius_px) {
-          offset = offset.dot(nrm) * nrm;
-        }
-      }
-      const size_t idx = (static_cast<size_t>(r) * cols_ + c) * 2;
-      data_[idx] = static_cast<float>(offset.x());
-      data_[idx + 1] = static_cast<float>(offset.y());
+      const Eigen::Vector2d offset = offset_from(x, edge_points_px[best], normals[best],
+                                                  options.normal_radius_px);
+      data_[2 * idx] = static_cast<float>(offset.x());
+      data_[2 * idx + 1] = static_cast<float>(offset.y());
+      inner_[idx] = nearest_d2[idx] <= inner_d2;
     }
   }
+  points_ = edge_points_px;
+  normals_ = std::move(normals);
+}
+
+void EdgeDistanceField::nearest_edge(const Eigen::Vector2d& px, Eigen::Vector2d* point,
+                                     Eigen::Vector2d* normal) const {
+  size_t best = 0;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < points_.size(); ++i) {
+    const double d2 = (px - points_[i]).squaredNorm();
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best = i;
+    }
+  }
+  *point = points_[best];
+  *normal = normals_[best];
+  const Eigen::Vector2d d = px - *point;
+  if (std::abs(d.x() * -normal->y() + d.y() * normal->x()) > tangent_reach_px_) normal->setZero();
 }
 
 Eigen::Vector2d EdgeDistanceField::offset(const Eigen::Vector2d& px) const {
+  if (!in_band(px.x(), px.y())) {
+    Eigen::Vector2d p, n;
+    nearest_edge(px, &p, &n);
+    return n.squaredNorm() > 0.5 ? Eigen::Vector2d((px - p).dot(n) * n) : Eigen::Vector2d(px - p);
+  }
   const ceres::Grid2D<float, 2> grid(data_.data(), row_begin_, row_begin_ + rows_, col_begin_,
                                      col_begin_ + cols_);
   const ceres::BiCubicInterpolator<ceres::Grid2D<float, 2>> interpolator(grid);
-  const double u = std::clamp(px.x(), double(col_begin_), double(col_begin_ + cols_ - 1));
-  const double v = std::clamp(px.y(), double(row_begin_), double(row_begin_ + rows_ - 1));
   double f[2];
-  interpolator.Evaluate(v, u, f);
-  return {f[0] + (px.x() - u), f[1] + (px.y() - v)};
+  interpolator.Evaluate(px.y(), px.x(), f);
+  return {f[0], f[1]};
 }
 
 }  // namespace rgbdt::extrinsics

@@ -43,6 +43,10 @@ struct EdgeAlignmentOptions {
   double function_tolerance = 1e-10;  ///< relative cost change that ends the solve
   double parameter_tolerance = 1e-10; ///< relative step size that ends the solve
   EdgeFieldOptions field;             ///< distance field (kSmoothField)
+  /// Before Eq. (2), refine the start by projecting the LIDAR hole centres onto the image
+  /// ellipse centres (needs >= 3 holes with both). Widens the basin of convergence from a
+  /// poor user guess; turn off to study Eq. (2) alone. (Not used by kPaperPlaneFit.)
+  bool coarse_center_stage = true;
   /// Window of the paper's plane fit [px] (kPaperPlaneFit); the paper uses 10.
   int paper_window_px = 10;
 
