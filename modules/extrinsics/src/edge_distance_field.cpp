@@ -63,19 +63,24 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
   }
   const int n = static_cast<int>(edge_points_px.size());
 
-  // Bucket the points by their nearest grid pixel (linked lists over the grid).
-  std::vector<int> head(static_cast<size_t>(cols_) * rows_, -1), next(n, -1);
+  // Bucket the points in 4 x 4 px cells (linked lists), for the neighbour searches.
+  constexpr int kCell = 4;
+  const int cell_cols = cols_ / kCell + 1, cell_rows = rows_ / kCell + 1;
+  std::vector<int> head(static_cast<size_t>(cell_cols) * cell_rows, -1), next(n, -1);
   for (int i = 0; i < n; ++i) {
     const int c = static_cast<int>(std::lround(edge_points_px[i].x())) - col_begin_;
     const int r = static_cast<int>(std::lround(edge_points_px[i].y())) - row_begin_;
-    const size_t idx = static_cast<size_t>(r) * cols_ + c;
+    const size_t idx = static_cast<size_t>(r / kCell) * cell_cols + c / kCell;
     next[i] = head[idx];
     head[idx] = i;
   }
+  // Calls fn(i) for (at least) every point within `reach` px of grid pixel (c0, r0).
   auto for_points_near = [&](int c0, int r0, int reach, auto&& fn) {
-    for (int r = std::max(0, r0 - reach); r <= std::min(rows_ - 1, r0 + reach); ++r) {
-      for (int c = std::max(0, c0 - reach); c <= std::min(cols_ - 1, c0 + reach); ++c) {
-        for (int i = head[static_cast<size_t>(r) * cols_ + c]; i >= 0; i = next[i]) fn(i);
+    const int r_lo = std::max(0, r0 - reach) / kCell, r_hi = std::min(rows_ - 1, r0 + reach) / kCell;
+    const int c_lo = std::max(0, c0 - reach) / kCell, c_hi = std::min(cols_ - 1, c0 + reach) / kCell;
+    for (int r = r_lo; r <= r_hi; ++r) {
+      for (int c = c_lo; c <= c_hi; ++c) {
+        for (int i = head[static_cast<size_t>(r) * cell_cols + c]; i >= 0; i = next[i]) fn(i);
       }
     }
   };
