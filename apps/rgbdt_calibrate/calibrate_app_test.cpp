@@ -21,12 +21,12 @@ std::string bin_dir() {
   return dir ? dir : std::string(RGBDT_BINARY_DIR) + "/bin";
 }
 
-struct Run {
+struct AppRun {
   int exit_code;
   std::string output;
 };
 
-Run run(const std::string& args) {
+AppRun run_app(const std::string& args) {
   const std::string log = (fs::temp_directory_path() / "rgbdt_calibrate_test.log").string();
   const int status = std::system((bin_dir() + "/rgbdt_calibrate " + args + " > " + log + " 2>&1").c_str());
   std::ifstream f(log);
@@ -78,7 +78,7 @@ std::string write_session_without_target(const std::string& name) {
 }
 
 TEST(RgbdtCalibrate, HelpExplainsItselfAndExitsZero) {
-  const Run r = run("--help");
+  const AppRun r = run_app("--help");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("SESSION_DIR"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--method"), std::string::npos) << r.output;
@@ -87,14 +87,14 @@ TEST(RgbdtCalibrate, HelpExplainsItselfAndExitsZero) {
 TEST(RgbdtCalibrate, SessionWhoseTargetIsNeverFoundFailsWithAClearError) {
   const std::string session = write_session_without_target("rgbdt_calibrate_no_target");
   const std::string out = session + "/out";
-  const Run r = run(session + " --out " + out);
+  const AppRun r = run_app(session + " --out " + out);
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("target was never found"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out + "/extrinsics_rgb.yaml"));
 }
 
 TEST(RgbdtCalibrate, MissingSessionNamesTheFile) {
-  const Run r = run("/nonexistent/session --out /tmp/rgbdt_calibrate_none");
+  const AppRun r = run_app("/nonexistent/session --out /tmp/rgbdt_calibrate_none");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("/nonexistent/session"), std::string::npos) << r.output;
 }
