@@ -14,13 +14,14 @@ namespace {
 
 extrinsics::TargetView make_target_view(const calib_targets::LidarTargetDetection& lidar,
                                         const calib_targets::ImageTargetDetection& image,
-                                        const core::TargetSpec& target, const core::PinholeCamera& camera,
+                                        const core::TargetSpec& target, const cv::Size& image_size,
                                         const std::string& name) {
   extrinsics::TargetView v;
   v.name = name;
   v.radius_m = target.radius_m;
-  v.image_width = camera.width();
-  v.image_height = camera.height();
+  // The image's own size: align_edges rejects a view whose image does not match the camera.
+  v.image_width = image_size.width;
+  v.image_height = image_size.height;
   // Eq. (2) needs no hole correspondence: all circles against all image edges.
   for (const auto& h : lidar.holes)
     v.lidar_circle_points.insert(v.lidar_circle_points.end(), h.circle_points.begin(), h.circle_points.end());
@@ -89,7 +90,7 @@ std::map<std::string, CameraViews> detect_session_views(
                                                       : "LIDAR: " + lidar.reason));
         continue;
       }
-      cv.views.push_back(make_target_view(lidar, det, session.target, camera, label));
+      cv.views.push_back(make_target_view(lidar, det, session.target, image.size(), label));
       cv.session_index.push_back(static_cast<int>(i));
       cv.image_paths.push_back(image_it->second);
     }
