@@ -64,7 +64,7 @@ int main(int argc, char** argv) {
       "ground_truth.yaml if the session has one) and overlay_<camera>_<view>.png (image edges\n"
       "blue, LIDAR circle before red, after green). Exits non-zero when the target is never found."};
   std::string session_dir, out_dir, camera_choice = "all", method_name = "edge", initial_path;
-  bool verbose = false;
+  bool verbose = false, ignore_seeds = false;
   app.add_option("SESSION_DIR", session_dir, "calibration session folder (with session.yaml)")->required();
   app.add_option("--out", out_dir, "output folder (created)")->required();
   app.add_option("--camera", camera_choice, "camera to calibrate: a camera name of the session or 'all'")
@@ -77,6 +77,8 @@ int main(int argc, char** argv) {
   app.add_option("--initial", initial_path,
                  "optional initial T_camera_lidar (extrinsics YAML); used for the camera named by "
                  "its parent_frame, or for the only calibrated camera");
+  app.add_flag("--ignore-seeds", ignore_seeds,
+               "find the targets automatically even where session.yaml gives seeds");
   app.add_flag("-v,--verbose", verbose, "print library log messages (debug level)");
   CLI11_PARSE(app, argc, argv);
 
@@ -102,7 +104,7 @@ int main(int argc, char** argv) {
     for (const auto& [name, c] : cameras) std::printf(" %s", name.c_str());
     std::printf("\ndetecting the target...\n");
     const auto per_camera = rgbdt::calibrate::detect_session_views(
-        session, cameras, [](const std::string& line) { std::printf("%s\n", line.c_str()); std::fflush(stdout); });
+        session, cameras, !ignore_seeds, [](const std::string& line) { std::printf("%s\n", line.c_str()); std::fflush(stdout); });
 
     const auto truth = read_ground_truth(session.directory);
     ext::EdgeAlignmentOptions options;

@@ -24,11 +24,12 @@ struct CameraViews {
 
 using Progress = std::function<void(const std::string&)>;
 
-/// Detects the target in every view of the session, for each requested camera. The LIDAR
-/// detection of a view is shared by the cameras. Throws rgbdt::core::Error naming the file
-/// when a cloud or image cannot be read.
+/// Detects the target in every view of the session, for each requested camera (seeded by
+/// session.yaml's seeds unless use_seeds is false). The LIDAR detection of a view is shared
+/// by the cameras. Throws rgbdt::core::Error naming the file when a cloud or image cannot
+/// be read.
 std::map<std::string, CameraViews> detect_session_views(
     const core::CalibrationSession& session, const std::map<std::string, core::PinholeCamera>& cameras,
-    const Progress& progress);
+    bool use_seeds, const Progress& progress);
 
 }  // namespace rgbdt::calibrate
