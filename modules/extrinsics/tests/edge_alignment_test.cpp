@@ -54,6 +54,31 @@ TEST(EdgeAlignment, NeedsNoInitialGuess) {
   EXPECT_LT(core::translation_error_m(r.T_camera_lidar, s.truth), kNoiselessTransM) << r.message;
 }
 
+TEST(EdgeAlignment, SeveralHolesPerViewShareOneField) {
+  // Multi-hole boards: each view's field holds the edges of all its holes, so a circle
+  // point is pulled to whichever image hole is nearest. Two views of four circles each.
+  const Scene s;
+  std::vector<TargetView> merged(2);
+  for (size_t i = 0; i < s.views.size(); ++i) {
+    TargetView& m = merged[i / 4];
+    const TargetView& v = s.views[i];
+    m.name = "board " + std::to_string(i / 4);
+    m.radius_m = v.radius_m;
+    m.image_width = v.image_width;
+    m.image_height = v.image_height;
+    auto append = [](auto& to, const auto& from) { to.insert(to.end(), from.begin(), from.end()); };
+    append(m.lidar_circle_points, v.lidar_circle_points);
+    append(m.image_edge_points_px, v.image_edge_points_px);
+    append(m.lidar_centers, v.lidar_centers);
+    append(m.lidar_normals, v.lidar_normals);
+    append(m.image_ellipses, v.image_ellipses);
+  }
+  const EdgeAlignmentResult r = align_edges(merged, s.camera);
+  EXPECT_TRUE(r.initial_from_closed_form);
+  EXPECT_LT(core::rotation_error_rad(r.T_camera_lidar, s.truth), kNoiselessRotDeg * kDeg) << r.message;
+  EXPECT_LT(core::translation_error_m(r.T_camera_lidar, s.truth), kNoiselessTransM) << r.message;
+}
+
 TEST(EdgeAlignment, PaperMethodConvergesToTable1Accuracy) {
   const Scene s;
   EdgeAlignmentOptions options;
