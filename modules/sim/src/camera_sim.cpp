@@ -67,6 +67,20 @@ CameraRenderer::CameraRenderer(const core::PinholeCamera& camera) : camera_(came
       centre_rays_[static_cast<size_t>(v) * w + u] = camera_.unproject(Eigen::Vector2d(u, v)).normalized().cast<float>();
     }
   }
+  // The image border (half a pixel out) bounds the field of view; 1 deg of margin.
+  auto widen = [this](double u, double v) {
+    const Eigen::Vector3d ray = camera_.unproject(Eigen::Vector2d(u, v)).normalized();
+    half_fov_rad_ = std::max(half_fov_rad_, std::acos(std::clamp(ray.z(), -1.0, 1.0)));
+  };
+  for (int u = 0; u <= w; ++u) {
+    widen(u - 0.5, -0.5);
+    widen(u - 0.5, h - 0.5);
+  }
+  for (int v = 0; v <= h; ++v) {
+    widen(-0.5, v - 0.5);
+    widen(w - 0.5, v - 0.5);
+  }
+  half_fov_rad_ += M_PI / 180.0;
 }
 
 template <typename Shade>
@@ -76,6 +90,8 @@ cv::Mat CameraRenderer::render(const Scene& scene, const Eigen::Isometry3d& T_wo
   const int w = camera_.width(), h = camera_.height();
   const Eigen::Matrix3d R = T_world_camera.linear();
   const Eigen::Vector3d o = T_world_camera.translation();
+  // Only what lies in the field of view: street scenes have many primitives behind.
+  const Scene visible = scene.culled(o, R.col(2), half_fov_rad_);
   cv::Mat out(h, w, CV_32FC(channels));
   std::vector<int> keys(static_cast<size_t>(w) * h);
   auto put = [&](int u, int v, const Eigen::Vector3d& value) {
@@ -85,7 +101,7 @@ cv::Mat CameraRenderer::render(const Scene& scene, const Eigen::Isometry3d& T_wo
   for (int v = 0; v < h; ++v) {
     for (int u = 0; u < w; ++u) {
       const size_t i = static_cast<size_t>(v) * w + u;
-      const std::optional<Hit> hit = scene.intersect(o, R * centre_rays_[i].cast<double>());
+      const std::optional<Hit> hit = visible.intersect(o, R * centre_rays_[i].cast<double>());
       keys[i] = surface_key(hit);
       put(u, v, shade(hit));
     }
@@ -109,7 +125,7 @@ cv::Mat CameraRenderer::render(const Scene& scene, const Eigen::Isometry3d& T_wo
       for (int j = 0; j < n; ++j) {
         for (int k = 0; k < n; ++k) {
           const Eigen::Vector2d px(u - 0.5 + (k + 0.5) / n, v - 0.5 + (j + 0.5) / n);
-          sum += shade(scene.intersect(o, R * camera_.unproject(px)));
+          sum += shade(visible.intersect(o, R * camera_.unproject(px)));
         }
       }
       put(u, v, sum / (n * n));

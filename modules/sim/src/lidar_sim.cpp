@@ -38,10 +38,9 @@ double TiltProfile::velocity_rad_s(double t) const {
 }
 
 long TiltProfile::tilt_index(double t) const {
-  long k = 0;
-  double f = 0.0;
-  tilt_phase(*this, t, &k, &f);
-  return k;
+  // Scan times are sums of periods: a scan due exactly at a tilt boundary can land a few
+  // ulps early; it belongs to the tilt that starts there.
+  return static_cast<long>(std::floor((t - start_time_s) / tilt_duration_s + 1e-9));
 }
 
 std::string TiltProfile::validate() const {

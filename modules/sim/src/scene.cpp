@@ -1,5 +1,6 @@
 #include "rgbdt/sim/scene.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -289,6 +290,29 @@ std::optional<Hit> Scene::intersect(const Eigen::Vector3d& origin_world, const E
   }
   if (!found) return std::nullopt;
   return best;
+}
+
+Scene Scene::culled(const Eigen::Vector3d& origin_world, const Eigen::Vector3d& axis_world,
+                    double half_angle_rad) const {
+  Scene out;
+  out.environment = environment;
+  out.materials_ = materials_;
+  const Eigen::Vector3d a = axis_world.normalized();
+  for (const Primitive& p : primitives_) {
+    bool keep = p.kind == Kind::kPlane;
+    if (!keep) {
+      const Eigen::Vector3d v = p.bound_center - origin_world;
+      const double d = v.norm();
+      if (d <= p.bound_radius) {
+        keep = true;
+      } else {
+        const double angle = std::acos(std::clamp(v.dot(a) / d, -1.0, 1.0));
+        keep = angle <= half_angle_rad + std::asin(p.bound_radius / d);
+      }
+    }
+    if (keep) out.primitives_.push_back(p);
+  }
+  return out;
 }
 
 namespace {

@@ -99,12 +99,14 @@ TEST(CameraSim, RgbHoleEdgesLandOnTheTrueProjectionWithinAThirdOfAPixel) {
   EXPECT_LT(e.max_px, 0.3);
   EXPECT_LT(e.rms_px, 0.1);
   RecordProperty("rgb_edge_rms_px", std::to_string(e.rms_px));
+  RecordProperty("rgb_edge_max_px", std::to_string(e.max_px));
 
   // The test can fail: without anti-aliasing, edges snap to pixel centres.
   render.supersampling = 1;
   radiance = grey(renderer.render_radiance(scene, rig.T_rgb_lidar.inverse(), render));
   const EdgeErrors aliased = measure_hole_edges(radiance, camera, rig.T_rgb_lidar, T_lidar_board, target.radius_m);
   EXPECT_GT(aliased.max_px, 0.3);
+  RecordProperty("rgb_edge_max_px_without_antialiasing", std::to_string(aliased.max_px));
 }
 
 TEST(CameraSim, ThermalHoleEdgesSurviveBlurWithinAThirdOfAPixel) {
@@ -125,6 +127,8 @@ TEST(CameraSim, ThermalHoleEdgesSurviveBlurWithinAThirdOfAPixel) {
   // Same bound, after the optics blur (symmetric, so it moves a curved edge by only
   // ~sigma^2 / (2 R) ~ 0.01 px) and the 0.04 K quantisation of the counts.
   EXPECT_LT(e.max_px, 0.3);
+  RecordProperty("thermal_edge_rms_px", std::to_string(e.rms_px));
+  RecordProperty("thermal_edge_max_px", std::to_string(e.max_px));
 }
 
 TEST(CameraSim, ThermalCountsFollowTheLinearRadiometryAndNetd) {

@@ -70,6 +70,8 @@ TEST(LidarSim, PointsLieOnTheTrueSurfaceWithTheConfiguredRangeNoise) {
   // errors) and the mean within ~0.06 sigma.
   EXPECT_NEAR(rms, options.range_sigma_m, 0.04 * options.range_sigma_m);
   EXPECT_LT(std::abs(mean), 0.06 * options.range_sigma_m);
+  RecordProperty("range_rms_m", std::to_string(rms));
+  RecordProperty("range_samples", std::to_string(n));
 }
 
 TEST(LidarSim, AssembledCloudMatchesRawScansOnTheWall) {

@@ -1,6 +1,8 @@
 // Ray casting against primitives with known analytic answers.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "rgbdt/sim/scene.hpp"
 
 namespace rgbdt::sim {
@@ -100,6 +102,29 @@ TEST(Scene, BoxCylinderAndSphereDistances) {
   EXPECT_NEAR(scene.intersect(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ())->distance, 6.0, 1e-12);
   // Above the cylinder's top (z = 2): nothing.
   EXPECT_FALSE(scene.intersect(Eigen::Vector3d(0, 0, 2.5), Eigen::Vector3d::UnitY()));
+}
+
+TEST(Scene, CulledSceneHitsTheSameInsideTheConeAndDropsWhatIsBehind) {
+  int grey = 0, dark = 0;
+  Scene scene = scene_with_materials(&grey, &dark);
+  std::mt19937_64 rng(2);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  for (int i = 0; i < 200; ++i) scene.add_sphere({u(rng), u(rng), u(rng)}, 0.5, i % 2 ? grey : dark);
+  scene.add_plane({0, 0, -25}, Eigen::Vector3d::UnitZ(), grey);
+  const double half_angle = 30.0 * M_PI / 180.0;
+  const Scene culled = scene.culled(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitX(), half_angle);
+  EXPECT_LT(culled.primitive_count(), scene.primitive_count() / 2);
+  std::uniform_real_distribution<double> a(-0.35, 0.35);  // within ~29 deg of +x
+  for (int i = 0; i < 2000; ++i) {
+    const Eigen::Vector3d dir(1.0, std::tan(a(rng)) * 0.7, std::tan(a(rng)) * 0.7);
+    const auto full = scene.intersect(Eigen::Vector3d::Zero(), dir);
+    const auto fast = culled.intersect(Eigen::Vector3d::Zero(), dir);
+    ASSERT_EQ(full.has_value(), fast.has_value());
+    if (full) {
+      EXPECT_DOUBLE_EQ(full->distance, fast->distance);
+      EXPECT_EQ(full->material, fast->material);
+    }
+  }
 }
 
 TEST(Scene, RejectsInvalidMaterialsAndIndices) {

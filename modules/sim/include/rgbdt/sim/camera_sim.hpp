@@ -81,6 +81,7 @@ class CameraRenderer {
 
   core::PinholeCamera camera_;
   std::vector<Eigen::Vector3f> centre_rays_;  ///< unit rays, camera frame, row-major
+  double half_fov_rad_ = 0.0;  ///< widest angle of a pixel's area from the optical axis
 };
 
 /// Radiance of a surface point for the RGB camera (Lambertian, sun + sky ambient), R G B.

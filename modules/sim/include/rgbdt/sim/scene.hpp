@@ -84,6 +84,11 @@ class Scene {
   std::optional<Hit> intersect(const Eigen::Vector3d& origin_world, const Eigen::Vector3d& direction_world,
                                double min_distance_m = 1e-6, double max_distance_m = 1e6) const;
 
+  /// The primitives that may be seen from origin within half_angle_rad of the unit axis
+  /// (bounding spheres against a cone; planes are always kept), for rendering one camera
+  /// frame quickly. Materials and environment are kept; primitive indices are renumbered.
+  Scene culled(const Eigen::Vector3d& origin_world, const Eigen::Vector3d& axis_world, double half_angle_rad) const;
+
   const std::vector<Material>& materials() const { return materials_; }
   const Material& material(int index) const { return materials_.at(static_cast<size_t>(index)); }
   int primitive_count() const { return static_cast<int>(primitives_.size()); }

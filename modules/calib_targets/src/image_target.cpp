@@ -1,0 +1,463 @@
+#include "rgbdt/calib_targets/image_target.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <functional>
+#include <numeric>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "rgbdt/calib_targets/lidar_target.hpp"
+#include "rgbdt/core/log.hpp"
+
+namespace rgbdt::calib_targets {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double median_of(std::vector<float> v) {
+  if (v.empty()) return 0.0;
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  return v[mid];
+}
+
+float bilinear(const cv::Mat& f, double x, double y) {
+  const int x0 = static_cast<int>(std::floor(x));
+  const int y0 = static_cast<int>(std::floor(y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= f.cols || y0 + 1 >= f.rows) return -1.0f;
+  const float ax = static_cast<float>(x - x0), ay = static_cast<float>(y - y0);
+  return (1 - ay) * ((1 - ax) * f.at<float>(y0, x0) + ax * f.at<float>(y0, x0 + 1)) +
+         ay * ((1 - ax) * f.at<float>(y0 + 1, x0) + ax * f.at<float>(y0 + 1, x0 + 1));
+}
+
+struct Candidate {
+  cv::RotatedRect ellipse;
+  double inside = 0.0, outside = 0.0;  ///< median levels of the hole and the board around it
+  double score = 0.0;
+};
+
+/// Hole/board levels: median inside the ellipse shrunk to 0.7, and in the ring 1.3-1.7.
+bool levels(const cv::Mat& f, const cv::RotatedRect& e, double* inside, double* outside,
+            double* ring_spread, double* inside_spread = nullptr) {
+  std::vector<float> in, out;
+  const double a = 0.5 * e.size.width, b = 0.5 * e.size.height;
+  const double ang = e.angle * kPi / 180.0, ca = std::cos(ang), sa = std::sin(ang);
+  const int R = static_cast<int>(std::ceil(1.8 * std::max(a, b)));
+  const int step = std::max(1, R / 40);
+  for (int dy = -R; dy <= R; dy += step) {
+    for (int dx = -R; dx <= R; dx += step) {
+      const int x = static_cast<int>(std::lround(e.center.x)) + dx;
+      const int y = static_cast<int>(std::lround(e.center.y)) + dy;
+      if (x < 0 || y < 0 || x >= f.cols || y >= f.rows) continue;
+      const double u = (x - e.center.x) * ca + (y - e.center.y) * sa;
+      const double v = -(x - e.center.x) * sa + (y - e.center.y) * ca;
+      const double rho = std::sqrt(u * u / (a * a) + v * v / (b * b));
+      if (rho < 0.7) in.push_back(f.at<float>(y, x));
+      if (rho > 1.3 && rho < 1.7) out.push_back(f.at<float>(y, x));
+    }
+  }
+  if (in.size() < 5 || out.size() < 10) return false;
+  *inside = median_of(in);
+  *outside = median_of(out);
+  std::vector<float> dev;
+  for (float v : out) dev.push_back(std::abs(v - static_cast<float>(*outside)));
+  *ring_spread = 1.4826 * median_of(dev);
+  if (inside_spread) {
+    dev.clear();
+    for (float v : in) dev.push_back(std::abs(v - static_cast<float>(*inside)));
+    *inside_spread = 1.4826 * median_of(dev);
+  }
+  return true;
+}
+
+/// Elliptical dark or bright blobs of a plausible size (MSER on the 8-bit normalised image).
+std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, double max_axis_px,
+                                       const ImageDetectionOptions& o) {
+  cv::Mat u8;
+  f.convertTo(u8, CV_8U, 255.0);
+  const double min_area = std::max(20.0, kPi * min_axis_px * min_axis_px * o.min_axis_ratio);
+  const double max_area = std::min(0.5 * f.total(), kPi * max_axis_px * max_axis_px);
+  std::vector<Candidate> out;
+  int stats[7] = {0, 0, 0, 0, 0, 0, 0};
+  for (int pass = 0; pass < 2; ++pass) {
+    cv::Mat img = pass == 0 ? u8 : cv::Mat(255 - u8);
+    auto mser = cv::MSER::create(5, static_cast<int>(min_area), static_cast<int>(max_area), 0.25);
+    std::vector<std::vector<cv::Point>> regions;
+    std::vector<cv::Rect> boxes;
+    mser->detectRegions(img, regions, boxes);
+    for (std::size_t ri = 0; ri < regions.size(); ++ri) {
+      const auto& reg = regions[ri];
+      ++stats[4];
+      if (reg.size() < 6) continue;
+      // The region's outline (MSER pixel lists are not a boundary and may repeat pixels).
+      const cv::Rect box = boxes[ri];
+      cv::Mat mask(box.height + 2, box.width + 2, CV_8U, cv::Scalar(0));
+      for (const cv::Point& p : reg) mask.at<uchar>(p.y - box.y + 1, p.x - box.x + 1) = 255;
+      const double area = cv::countNonZero(mask);
+      std::vector<std::vector<cv::Point>> contours;
+      cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, cv::Point(box.x - 1, box.y - 1));
+      if (contours.size() != 1 || contours[0].size() < 6) continue;
+      const cv::RotatedRect e = cv::fitEllipse(contours[0]);
+      const double a = 0.5 * std::max(e.size.width, e.size.height);
+      const double b = 0.5 * std::min(e.size.width, e.size.height);
+      if (!(b > 1.0) || b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
+      ++stats[5];
+      const double fill = area / (kPi * a * b);
+      if (fill < 0.9 || fill > 1.1) continue;
+      ++stats[6];
+      if (e.center.x - a < 1 || e.center.y - a < 1 || e.center.x + a > f.cols - 2 ||
+          e.center.y + a > f.rows - 2) {
+        continue;
+      }
+      Candidate c;
+      c.ellipse = e;
+      double spread = 0.0, in_spread = 0.0;
+      ++stats[0];
+      if (!levels(f, e, &c.inside, &c.outside, &spread, &in_spread)) continue;
+      const double contrast = std::abs(c.outside - c.inside);
+      ++stats[1];
+      if (contrast < o.min_contrast) continue;
+      ++stats[2];
+      // A hole: homogeneous inside, enclosed by a homogeneous board.
+      if (spread > 0.35 * contrast || in_spread > 0.35 * contrast) continue;
+      ++stats[3];
+      c.score = contrast / (spread + in_spread + 0.02);
+      out.push_back(c);
+    }
+  }
+  core::log_debug("calib_targets: MSER regions ", stats[4], ", size ok ", stats[5], ", elliptical ",
+                  stats[6], ", inside image ", stats[0], ", levels ", stats[1], ", contrast ", stats[2],
+                  ", homogeneous ", stats[3]);
+  // Nested MSERs of one hole: keep the best-scoring one per centre.
+  std::sort(out.begin(), out.end(), [](const Candidate& x, const Candidate& y) { return x.score > y.score; });
+  std::vector<Candidate> unique;
+  for (const Candidate& c : out) {
+    bool dup = false;
+    for (const Candidate& u : unique) {
+      const double d = std::hypot(c.ellipse.center.x - u.ellipse.center.x, c.ellipse.center.y - u.ellipse.center.y);
+      if (d < 0.5 * std::min(u.ellipse.size.width, u.ellipse.size.height)) dup = true;
+    }
+    if (!dup) unique.push_back(c);
+  }
+  return unique;
+}
+
+/// Chooses one candidate per layout hole: an affine map board -> image consistent with the
+/// layout, board y pointing up in the image. Returns candidate indices in layout order.
+std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
+                                    const std::vector<Candidate>& cand, const Eigen::Vector2d& up,
+                                    std::string* reason) {
+  const std::size_t n = layout.size();
+  if (cand.size() < n) {
+    *reason = "found " + std::to_string(cand.size()) + " hole-like region(s), the target has " +
+              std::to_string(n);
+    return {};
+  }
+  if (n == 1) return {0};
+  const std::size_t k = std::min<std::size_t>(cand.size(), 9);
+  double best = 1e18;
+  std::vector<int> best_pick;
+  std::vector<int> pick(n);
+  std::vector<int> pool(k);
+  std::iota(pool.begin(), pool.end(), 0);
+  // Ordered selections of n of the k best candidates (k <= 9, n <= 4 typically).
+  std::vector<bool> used(k, false);
+  std::function<void(std::size_t)> rec = [&](std::size_t depth) {
+    if (depth == n) {
+      // Affine fit: [u v] = A [x y 1].
+      Eigen::MatrixXd M(static_cast<Eigen::Index>(n), 3);
+      Eigen::MatrixXd P(static_cast<Eigen::Index>(n), 2);
+      double size = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        const auto& e = cand[static_cast<std::size_t>(pick[i])].ellipse;
+        M.row(static_cast<Eigen::Index>(i)) << layout[i].x(), layout[i].y(), 1.0;
+        P.row(static_cast<Eigen::Index>(i)) << e.center.x, e.center.y;
+        size += 0.5 * std::max(e.size.width, e.size.height) / static_cast<double>(n);
+      }
+      const Eigen::MatrixXd A = M.colPivHouseholderQr().solve(P);
+      const double rms = std::sqrt((M * A - P).squaredNorm() / static_cast<double>(n));
+      const Eigen::Vector2d ax = A.row(0).transpose(), ay = A.row(1).transpose();
+      if (ay.dot(up) <= 0) return;  // board y must point up in the image
+      if (ax.x() * ay.y() - ax.y() * ay.x() >= 0) return;  // x right of y (image v is down)
+      const double cost = rms / size;
+      if (cost < best) {
+        best = cost;
+        best_pick = pick;
+      }
+      return;
+    }
+    for (std::size_t i = 0; i < k; ++i) {
+      if (used[i]) continue;
+      used[i] = true;
+      pick[depth] = static_cast<int>(i);
+      rec(depth + 1);
+      used[i] = false;
+    }
+  };
+  rec(0);
+  if (best_pick.empty() || best > 0.3) {
+    *reason = "no set of " + std::to_string(n) + " holes matches the target's layout";
+    return {};
+  }
+  return best_pick;
+}
+
+}  // namespace
+
+std::string ImageDetectionOptions::validate() const {
+  std::ostringstream s;
+  if (!(epsilon_fraction > 0 && epsilon_fraction < 1)) s << "epsilon_fraction = " << epsilon_fraction << " must be in (0, 1); ";
+  if (seed_guard_fraction < 0) s << "seed_guard_fraction = " << seed_guard_fraction << " must be >= 0; ";
+  if (!(low_percentile >= 0 && high_percentile <= 100 && low_percentile < high_percentile)) s << "percentiles must satisfy 0 <= low < high <= 100; ";
+  if (smoothing_sigma_px < 0) s << "smoothing_sigma_px must be >= 0; ";
+  if (!(min_range_m > 0 && max_range_m > min_range_m)) s << "need 0 < min_range_m < max_range_m; ";
+  if (!(min_axis_ratio > 0 && min_axis_ratio <= 1)) s << "min_axis_ratio must be in (0, 1]; ";
+  if (!(edge_search_px > 0)) s << "edge_search_px must be > 0; ";
+  if (up_image.norm() < 1e-9) s << "up_image must be non-zero; ";
+  return s.str();
+}
+
+cv::Mat normalise_image(const cv::Mat& image, double low_percentile, double high_percentile) {
+  cv::Mat grey;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, grey, cv::COLOR_BGRA2GRAY);
+  } else {
+    grey = image;
+  }
+  cv::Mat f;
+  grey.convertTo(f, CV_32F);
+  std::vector<float> v;
+  v.reserve(f.total() / 4 + 1);
+  for (int y = 0; y < f.rows; y += 2) {
+    for (int x = 0; x < f.cols; x += 2) v.push_back(f.at<float>(y, x));
+  }
+  std::sort(v.begin(), v.end());
+  const auto at = [&](double p) {
+    return v[std::min(v.size() - 1, static_cast<std::size_t>(p / 100.0 * static_cast<double>(v.size())))];
+  };
+  const float lo = at(low_percentile), hi = at(high_percentile);
+  const float scale = hi > lo ? 1.0f / (hi - lo) : 1.0f;
+  f = (f - lo) * scale;
+  cv::min(f, 1.0, f);
+  cv::max(f, 0.0, f);
+  return f;
+}
+
+std::vector<Eigen::Vector2i> grow_region(const cv::Mat& f, const Eigen::Vector2i& seed,
+                                         double epsilon, double seed_guard, cv::Mat* region_out,
+                                         std::size_t max_pixels) {
+  // Algorithm 1, lines 1-2: BI = ones; here 255 = not in the region ("1"), 0 = region.
+  cv::Mat bi(f.rows, f.cols, CV_8U, cv::Scalar(255));
+  std::deque<Eigen::Vector2i> queue;  // lines 3-4
+  std::vector<Eigen::Vector2i> list;  // line 5: L
+  const float seed_level = f.at<float>(seed.y(), seed.x());
+  queue.push_back(seed);
+  list.push_back(seed);
+  bi.at<uchar>(seed.y(), seed.x()) = 0;
+  while (!queue.empty()) {  // line 6
+    const Eigen::Vector2i p = queue.front();  // lines 7-8
+    queue.pop_front();
+    const float ip = f.at<float>(p.y(), p.x());
+    for (int dy = -1; dy <= 1; ++dy) {  // line 9: 8-neighbourhood
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (dx == 0 && dy == 0) continue;
+        const int x = p.x() + dx, y = p.y() + dy;
+        if (x < 0 || y < 0 || x >= f.cols || y >= f.rows) continue;
+        const float in = f.at<float>(y, x);
+        if (std::abs(in - ip) > epsilon) continue;  // line 11
+        if (seed_guard > 0 && std::abs(in - seed_level) > seed_guard) continue;
+        if (bi.at<uchar>(y, x) == 0) continue;  // line 13
+        queue.emplace_back(x, y);               // lines 15-17
+        list.emplace_back(x, y);
+        bi.at<uchar>(y, x) = 0;
+      }
+    }
+    if (list.size() > max_pixels) return {};
+  }
+  std::vector<Eigen::Vector2i> boundary;  // lines 22-32
+  for (const Eigen::Vector2i& p : list) {
+    bool edge = false;
+    for (int dy = -1; dy <= 1 && !edge; ++dy) {
+      for (int dx = -1; dx <= 1 && !edge; ++dx) {
+        const int x = p.x() + dx, y = p.y() + dy;
+        if (x < 0 || y < 0 || x >= f.cols || y >= f.rows || bi.at<uchar>(y, x) == 255) edge = true;
+      }
+    }
+    if (edge) boundary.push_back(p);
+  }
+  if (region_out) *region_out = 255 - bi;
+  return boundary;
+}
+
+ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::TargetSpec& target,
+                                            const core::PinholeCamera& camera,
+                                            const ImageDetectionOptions& options,
+                                            std::optional<Eigen::Vector2d> seed_px) {
+  if (const std::string err = options.validate(); !err.empty()) {
+    throw std::invalid_argument("ImageDetectionOptions: " + err);
+  }
+  if (!(target.radius_m > 0)) {
+    throw std::invalid_argument("TargetSpec: radius_m = " + std::to_string(target.radius_m) + " must be > 0");
+  }
+  ImageTargetDetection det;
+  if (image.empty()) {
+    det.reason = "empty image";
+    return det;
+  }
+  if (image.cols != camera.width() || image.rows != camera.height()) {
+    det.reason = "image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                 " but the camera '" + camera.intrinsics().camera_name + "' expects " +
+                 std::to_string(camera.width()) + "x" + std::to_string(camera.height());
+    return det;
+  }
+  if (image.depth() != CV_8U && image.depth() != CV_16U) {
+    det.reason = "image depth must be 8 or 16 bit unsigned";
+    return det;
+  }
+  const cv::Mat f = normalise_image(image, options.low_percentile, options.high_percentile);
+  cv::Mat smooth;
+  if (options.smoothing_sigma_px > 0) {
+    cv::GaussianBlur(f, smooth, cv::Size(), options.smoothing_sigma_px);
+  } else {
+    smooth = f;
+  }
+  const double fx = camera.intrinsics().fx;
+  const double max_axis = 1.1 * fx * target.radius_m / options.min_range_m;
+  const double min_axis = 0.9 * fx * target.radius_m / options.max_range_m;
+  const std::vector<Eigen::Vector2d> layout = target_layout(target);
+
+  std::vector<Candidate> chosen;
+  if (seed_px) {
+    if (layout.size() != 1) {
+      det.reason = "a seed pixel is only used for single-hole targets";
+      return det;
+    }
+    const Eigen::Vector2i s = seed_px->array().round().cast<int>();
+    if (s.x() < 0 || s.y() < 0 || s.x() >= f.cols || s.y() >= f.rows) {
+      det.reason = "seed (" + std::to_string(s.x()) + ", " + std::to_string(s.y()) + ") outside the image";
+      return det;
+    }
+    // Contrast from the seed's region grown with a loose threshold: its ring gives the board.
+    cv::Mat region;
+    const auto bnd = grow_region(smooth, s, 0.05, 0.25, &region,
+                                 static_cast<std::size_t>(kPi * max_axis * max_axis));
+    std::vector<cv::Point> pts;
+    for (const auto& b : bnd) pts.emplace_back(b.x(), b.y());
+    if (pts.size() < 6) {
+      det.reason = "the seed's region is not a hole (it leaks into the background or is tiny)";
+      return det;
+    }
+    Candidate c;
+    c.ellipse = cv::fitEllipse(pts);
+    double spread = 0.0;
+    if (!levels(f, c.ellipse, &c.inside, &c.outside, &spread) ||
+        std::abs(c.outside - c.inside) < options.min_contrast) {
+      det.reason = "the seed's region has no contrast with its surroundings";
+      return det;
+    }
+    chosen.push_back(c);
+  } else {
+    const auto cand = find_candidates(f, min_axis, max_axis, options);
+    std::string why;
+    const auto pick = match_layout_image(layout, cand, options.up_image.normalized(), &why);
+    if (pick.empty()) {
+      det.reason = why;
+      return det;
+    }
+    for (int i : pick) chosen.push_back(cand[static_cast<std::size_t>(i)]);
+  }
+
+  for (std::size_t h = 0; h < chosen.size(); ++h) {
+    const Candidate& c = chosen[h];
+    const double contrast = std::abs(c.outside - c.inside);
+    const double expected_area = kPi * 0.25 * c.ellipse.size.width * c.ellipse.size.height;
+    const Eigen::Vector2i s(static_cast<int>(std::lround(c.ellipse.center.x)),
+                            static_cast<int>(std::lround(c.ellipse.center.y)));
+    // Algorithm 1 from the hole's centre (the automatic seed) or the clicked seed.
+    const Eigen::Vector2i seed = seed_px ? Eigen::Vector2i(seed_px->array().round().cast<int>()) : s;
+    cv::Mat region;
+    ImageHole hole;
+    hole.boundary_px = grow_region(smooth, seed, options.epsilon_fraction * contrast,
+                                   options.seed_guard_fraction * contrast, &region,
+                                   static_cast<std::size_t>(3.0 * expected_area) + 100);
+    const double area = cv::countNonZero(region);
+    if (hole.boundary_px.empty() || area < 0.4 * expected_area) {
+      det.reason = "hole " + std::to_string(h) + ": region growing gave " + std::to_string(static_cast<int>(area)) +
+                   " px, expected about " + std::to_string(static_cast<int>(expected_area));
+      return det;
+    }
+    hole.dark = c.inside < c.outside;
+    hole.contrast = contrast;
+    // Sub-pixel edges: the mid-level crossing along the gradient through each boundary pixel.
+    cv::Mat gx, gy;
+    cv::Sobel(smooth, gx, CV_32F, 1, 0, 3);
+    cv::Sobel(smooth, gy, CV_32F, 0, 1, 3);
+    const double mid = 0.5 * (c.inside + c.outside);
+    for (const Eigen::Vector2i& b : hole.boundary_px) {
+      Eigen::Vector2d d(gx.at<float>(b.y(), b.x()), gy.at<float>(b.y(), b.x()));
+      const Eigen::Vector2d radial = (b.cast<double>() - Eigen::Vector2d(c.ellipse.center.x, c.ellipse.center.y)).normalized();
+      if (d.norm() < 1e-6) d = radial;
+      d.normalize();
+      if (d.dot(radial) < 0) d = -d;  // outwards
+      double best_t = 1e9;
+      const double step = 0.1;
+      double prev = bilinear(f, b.x() - options.edge_search_px * d.x(), b.y() - options.edge_search_px * d.y()) - mid;
+      for (double t = -options.edge_search_px + step; t <= options.edge_search_px + 1e-9; t += step) {
+        const float v = bilinear(f, b.x() + t * d.x(), b.y() + t * d.y());
+        if (v < 0) break;
+        const double cur = v - mid;
+        if ((prev < 0) != (cur < 0) && std::abs(t) < std::abs(best_t)) {
+          best_t = t - step * cur / (cur - prev);  // linear interpolation of the crossing
+        }
+        prev = cur;
+      }
+      if (best_t < 1e8) hole.edge_points_px.push_back(b.cast<double>() + best_t * d);
+    }
+    if (hole.edge_points_px.size() < 6) {
+      det.reason = "hole " + std::to_string(h) + ": too few sub-pixel edge points";
+      return det;
+    }
+    std::vector<cv::Point2f> ep;
+    for (const auto& p : hole.edge_points_px) ep.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+    hole.ellipse = cv::fitEllipse(ep);
+    // Drop edge points far from the ellipse (noise, neighbouring structures), refit.
+    std::vector<Eigen::Vector2d> kept;
+    const double a = 0.5 * hole.ellipse.size.width, bb = 0.5 * hole.ellipse.size.height;
+    const double ang = hole.ellipse.angle * kPi / 180.0;
+    for (const auto& p : hole.edge_points_px) {
+      const double dx = p.x() - hole.ellipse.center.x, dy = p.y() - hole.ellipse.center.y;
+      const double u = dx * std::cos(ang) + dy * std::sin(ang), v = -dx * std::sin(ang) + dy * std::cos(ang);
+      const double rho = std::sqrt(u * u / (a * a) + v * v / (bb * bb));
+      if (std::abs(rho - 1.0) * std::min(a, bb) < 1.5) kept.push_back(p);
+    }
+    if (kept.size() >= 6 && kept.size() < hole.edge_points_px.size()) {
+      hole.edge_points_px = kept;
+      ep.clear();
+      for (const auto& p : kept) ep.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+      hole.ellipse = cv::fitEllipse(ep);
+    }
+    hole.center_px = Eigen::Vector2d(hole.ellipse.center.x, hole.ellipse.center.y);
+    det.holes.push_back(std::move(hole));
+  }
+  // Layout order -> row-major, top-left first (board y up, then x).
+  std::vector<std::size_t> order(layout.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    if (std::abs(layout[a].y() - layout[b].y()) > 1e-6) return layout[a].y() > layout[b].y();
+    return layout[a].x() < layout[b].x();
+  });
+  std::vector<ImageHole> sorted;
+  for (std::size_t k : order) sorted.push_back(det.holes[k]);
+  det.holes = std::move(sorted);
+  det.ok = true;
+  return det;
+}
+
+}  // namespace rgbdt::calib_targets
