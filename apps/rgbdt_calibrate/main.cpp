@@ -64,7 +64,8 @@ int main(int argc, char** argv) {
       "ground_truth.yaml if the session has one) and overlay_<camera>_<view>.png (image edges\n"
       "blue, LIDAR circle before red, after green). Exits non-zero when the target is never found."};
   std::string session_dir, out_dir, camera_choice = "all", method_name = "edge", initial_path;
-  bool verbose = false, ignore_seeds = false;
+  bool verbose = false;
+  std::string seeds = "all";
   app.add_option("SESSION_DIR", session_dir, "calibration session folder (with session.yaml)")->required();
   app.add_option("--out", out_dir, "output folder (created)")->required();
   app.add_option("--camera", camera_choice, "camera to calibrate: a camera name of the session or 'all'")
@@ -77,8 +78,11 @@ int main(int argc, char** argv) {
   app.add_option("--initial", initial_path,
                  "optional initial T_camera_lidar (extrinsics YAML); used for the camera named by "
                  "its parent_frame, or for the only calibrated camera");
-  app.add_flag("--ignore-seeds", ignore_seeds,
-               "find the targets automatically even where session.yaml gives seeds");
+  app.add_option("--seeds", seeds,
+                 "which seeds of session.yaml to use: all, images, lidar or none (none: find the "
+                 "targets automatically everywhere)")
+      ->check(CLI::IsMember({"all", "images", "lidar", "none"}))
+      ->capture_default_str();
   app.add_flag("-v,--verbose", verbose, "print library log messages (debug level)");
   CLI11_PARSE(app, argc, argv);
 
@@ -104,7 +108,7 @@ int main(int argc, char** argv) {
     for (const auto& [name, c] : cameras) std::printf(" %s", name.c_str());
     std::printf("\ndetecting the target...\n");
     const auto per_camera = rgbdt::calibrate::detect_session_views(
-        session, cameras, !ignore_seeds, [](const std::string& line) { std::printf("%s\n", line.c_str()); std::fflush(stdout); });
+        session, cameras, seeds == "all" || seeds == "lidar", seeds == "all" || seeds == "images", [](const std::string& line) { std::printf("%s\n", line.c_str()); std::fflush(stdout); });
 
     const auto truth = read_ground_truth(session.directory);
     ext::EdgeAlignmentOptions options;

@@ -43,7 +43,7 @@ extrinsics::TargetView make_target_view(const calib_targets::LidarTargetDetectio
 
 std::map<std::string, CameraViews> detect_session_views(
     const core::CalibrationSession& session, const std::map<std::string, core::PinholeCamera>& cameras,
-    bool use_seeds, const Progress& progress) {
+    bool lidar_seeds, bool image_seeds, const Progress& progress) {
   std::map<std::string, CameraViews> out;
   for (const auto& [name, camera] : cameras) out[name].camera_name = name;
   const size_t n = session.views.size();
@@ -53,7 +53,7 @@ std::map<std::string, CameraViews> detect_session_views(
     const cloud::LoadedCloud loaded = cloud::load_pcd(view.cloud);
     const calib_targets::LidarTargetDetection lidar = calib_targets::detect_target_in_cloud(
         *loaded.cloud, loaded.has_ring, session.target, {},
-        use_seeds ? view.lidar_seed : std::optional<Eigen::Vector3d>{});
+        lidar_seeds ? view.lidar_seed : std::optional<Eigen::Vector3d>{});
     {
       std::ostringstream os;
       os << label << "/" << n << ": LIDAR " << loaded.cloud->size() << " points: ";
@@ -74,7 +74,7 @@ std::map<std::string, CameraViews> detect_session_views(
         throw core::Error(image_it->second, "cannot read the image (expected an 8- or 16-bit PNG)");
       }
       std::optional<Eigen::Vector2d> seed;
-      if (const auto s = view.image_seeds.find(name); use_seeds && s != view.image_seeds.end())
+      if (const auto s = view.image_seeds.find(name); image_seeds && s != view.image_seeds.end())
         seed = s->second;
       const calib_targets::ImageTargetDetection det =
           calib_targets::detect_target_in_image(image, session.target, camera, {}, seed);

@@ -24,12 +24,12 @@ struct CameraViews {
 
 using Progress = std::function<void(const std::string&)>;
 
-/// Detects the target in every view of the session, for each requested camera (seeded by
-/// session.yaml's seeds unless use_seeds is false). The LIDAR detection of a view is shared
+/// Detects the target in every view of the session, for each requested camera (the LIDAR
+/// and/or image detections seeded by session.yaml's seeds when the flags say so). The LIDAR detection of a view is shared
 /// by the cameras. Throws rgbdt::core::Error naming the file when a cloud or image cannot
 /// be read.
 std::map<std::string, CameraViews> detect_session_views(
     const core::CalibrationSession& session, const std::map<std::string, core::PinholeCamera>& cameras,
-    bool use_seeds, const Progress& progress);
+    bool lidar_seeds, bool image_seeds, const Progress& progress);
 
 }  // namespace rgbdt::calibrate
