@@ -1,0 +1,103 @@
+#include "session_views.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "rgbdt/calib_targets/image_target.hpp"
+#include "rgbdt/calib_targets/lidar_target.hpp"
+#include "rgbdt/cloud/pcd_io.hpp"
+#include "rgbdt/core/error.hpp"
+
+namespace rgbdt::calibrate {
+
+namespace {
+
+extrinsics::TargetView make_target_view(const calib_targets::LidarTargetDetection& lidar,
+                                        const calib_targets::ImageTargetDetection& image,
+                                        const core::TargetSpec& target, const cv::Size& image_size,
+                                        const std::string& name) {
+  extrinsics::TargetView v;
+  v.name = name;
+  v.radius_m = target.radius_m;
+  // The image's own size: align_edges rejects a view whose image does not match the camera.
+  v.image_width = image_size.width;
+  v.image_height = image_size.height;
+  // Eq. (2) needs no hole correspondence: all circles against all image edges.
+  for (const auto& h : lidar.holes)
+    v.lidar_circle_points.insert(v.lidar_circle_points.end(), h.circle_points.begin(), h.circle_points.end());
+  for (const auto& h : image.holes)
+    v.image_edge_points_px.insert(v.image_edge_points_px.end(), h.edge_points_px.begin(), h.edge_points_px.end());
+  // The closed-form guess pairs holes, which both detectors order the same way; only when
+  // both found every hole.
+  if (lidar.holes.size() == image.holes.size()) {
+    for (size_t k = 0; k < lidar.holes.size(); ++k) {
+      v.lidar_centers.push_back(lidar.holes[k].center);
+      v.lidar_normals.push_back(lidar.holes[k].normal);
+      v.image_ellipses.push_back(image.holes[k].ellipse);
+    }
+  }
+  return v;
+}
+
+}  // namespace
+
+std::map<std::string, CameraViews> detect_session_views(
+    const core::CalibrationSession& session, const std::map<std::string, core::PinholeCamera>& cameras,
+    bool lidar_seeds, bool image_seeds, const Progress& progress) {
+  std::map<std::string, CameraViews> out;
+  for (const auto& [name, camera] : cameras) out[name].camera_name = name;
+  const size_t n = session.views.size();
+  for (size_t i = 0; i < n; ++i) {
+    const core::CalibrationView& view = session.views[i];
+    const std::string label = "view " + std::to_string(i);
+    const cloud::LoadedCloud loaded = cloud::load_pcd(view.cloud);
+    const calib_targets::LidarTargetDetection lidar = calib_targets::detect_target_in_cloud(
+        *loaded.cloud, loaded.has_ring, session.target, {},
+        lidar_seeds ? view.lidar_seed : std::optional<Eigen::Vector3d>{});
+    {
+      std::ostringstream os;
+      os << label << "/" << n << ": LIDAR " << loaded.cloud->size() << " points: ";
+      if (lidar.ok) os << lidar.holes.size() << " hole(s) found";
+      else os << "target not found (" << lidar.reason << ")";
+      progress(os.str());
+    }
+    for (const auto& [name, camera] : cameras) {
+      CameraViews& cv = out[name];
+      if (lidar.ok) ++cv.lidar_found;
+      const auto image_it = view.images.find(name);
+      if (image_it == view.images.end()) {
+        cv.skipped.push_back(label + ": no " + name + " image in session.yaml");
+        continue;
+      }
+      const cv::Mat image = cv::imread(image_it->second, cv::IMREAD_UNCHANGED);
+      if (image.empty()) {
+        throw core::Error(image_it->second, "cannot read the image (expected an 8- or 16-bit PNG)");
+      }
+      std::optional<Eigen::Vector2d> seed;
+      if (const auto s = view.image_seeds.find(name); image_seeds && s != view.image_seeds.end())
+        seed = s->second;
+      const calib_targets::ImageTargetDetection det =
+          calib_targets::detect_target_in_image(image, session.target, camera, {}, seed);
+      std::ostringstream os;
+      os << "  " << name << ": ";
+      if (det.ok) {
+        ++cv.image_found;
+        os << det.holes.size() << " hole(s) found";
+      } else {
+        os << "target not found (" << det.reason << ")";
+      }
+      progress(os.str());
+      if (!det.ok || !lidar.ok) {
+        cv.skipped.push_back(label + ": " + (lidar.ok ? name + " image: " + det.reason
+                                                      : "LIDAR: " + lidar.reason));
+        continue;
+      }
+      cv.views.push_back(make_target_view(lidar, det, session.target, image.size(), label));
+      cv.session_index.push_back(static_cast<int>(i));
+      cv.image_paths.push_back(image_it->second);
+    }
+  }
+  return out;
+}
+
+}  // namespace rgbdt::calibrate

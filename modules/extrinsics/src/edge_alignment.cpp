@@ -1,0 +1,611 @@
+#include "rgbdt/extrinsics/edge_alignment.hpp"
+
+#include <ceres/ceres.h>
+#include <ceres/cubic_interpolation.h>
+#include <ceres/rotation.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "projection.hpp"
+#include "rgbdt/core/log.hpp"
+#include "rgbdt/extrinsics/initial_guess.hpp"
+
+namespace rgbdt::extrinsics {
+
+namespace detail {
+
+ProjectionModel make_projection_model(const core::PinholeCamera& camera) {
+  const core::CameraIntrinsics& in = camera.intrinsics();
+  ProjectionModel m;
+  m.model = in.model;
+  m.k[0] = in.fx;
+  m.k[1] = in.fy;
+  m.k[2] = in.cx;
+  m.k[3] = in.cy;
+  for (size_t i = 0; i < in.distortion.size() && i < 5; ++i) m.d[i] = in.distortion[i];
+  m.width = in.width;
+  m.height = in.height;
+  bool any = false;
+  for (double c : m.d) any = any || c != 0.0;
+  if (in.model == core::DistortionModel::kNone || !any) return m;
+  // Normalised radius of the image corners, with some room for points just outside.
+  double r_image = 0.0;
+  for (const auto& px : {Eigen::Vector2d(0, 0), Eigen::Vector2d(in.width - 1, 0),
+                         Eigen::Vector2d(0, in.height - 1),
+                         Eigen::Vector2d(in.width - 1, in.height - 1)}) {
+    r_image = std::max(r_image, camera.unproject(px).head<2>().norm());
+  }
+  m.r_max = 1.25 * r_image;
+  // Stop before the distorted radius stops growing (polynomial fold-back).
+  double prev = 0.0;
+  for (int i = 1; i <= 400; ++i) {
+    const double r = m.r_max * i / 400.0;
+    double xd, yd;
+    core::distort_generic(m.model, m.d, r, 0.0, &xd, &yd);
+    if (xd <= prev) {
+      m.r_max = m.r_max * (i - 1) / 400.0;
+      break;
+    }
+    prev = xd;
+  }
+  return m;
+}
+
+}  // namespace detail
+
+namespace {
+
+using detail::ProjectionModel;
+using Grid = ceres::Grid2D<float, 2>;
+using Interpolator = ceres::BiCubicInterpolator<Grid>;
+
+template <typename T>
+void transform_point(const T* x, const Eigen::Vector3d& p_lidar, T* p_camera) {
+  const T p[3] = {T(p_lidar.x()), T(p_lidar.y()), T(p_lidar.z())};
+  ceres::AngleAxisRotatePoint(x, p, p_camera);
+  p_camera[0] += x[3];
+  p_camera[1] += x[4];
+  p_camera[2] += x[5];
+}
+
+inline double value_of(double x) { return x; }
+template <typename J>
+double value_of(const J& jet) {
+  return jet.a;
+}
+
+/// Field of one view, ready for the cost functions.
+struct SmoothView {
+  explicit SmoothView(const std::vector<Eigen::Vector2d>& edges, const EdgeFieldOptions& o)
+      : field(edges, o),
+        grid(field.data().data(), field.row_begin(), field.row_begin() + field.rows(),
+             field.col_begin(), field.col_begin() + field.cols()),
+        interpolator(grid) {}
+  EdgeDistanceField field;
+  Grid grid;
+  Interpolator interpolator;
+};
+
+/// Eq. (2) for one LIDAR circle point, ours: the 2-vector from the edge to the projection
+/// (its norm is the distance): bicubic in the exact field near the edges, the exact
+/// nearest-edge form further away.
+struct SmoothEdgeResidual {
+  SmoothEdgeResidual(const ProjectionModel* cam, const SmoothView* view, Eigen::Vector3d p)
+      : cam_(cam), view_(view), p_lidar_(std::move(p)) {}
+  template <typename T>
+  bool operator()(const T* x, T* residual) const {
+    T p_camera[3];
+    transform_point(x, p_lidar_, p_camera);
+    return from_camera_point(p_camera, residual);
+  }
+  template <typename T>
+  bool from_camera_point(const T* p_camera, T* residual) const {
+    T uv[2];
+    detail::project_total(*cam_, p_camera, uv);
+    const EdgeDistanceField& f = view_->field;
+    const double u = value_of(uv[0]), v = value_of(uv[1]);
+    if (f.in_band(u, v)) {
+      view_->interpolator.Evaluate(uv[1], uv[0], residual);
+      return true;
+    }
+    Eigen::Vector2d p, n;
+    f.nearest_edge({u, v}, &p, &n);
+    const T du = uv[0] - T(p.x()), dv = uv[1] - T(p.y());
+    if (n.squaredNorm() > 0.5) {
+      const T along = du * T(n.x()) + dv * T(n.y());
+      residual[0] = along * T(n.x());
+      residual[1] = along * T(n.y());
+    } else {
+      residual[0] = du;
+      residual[1] = dv;
+    }
+    return true;
+  }
+  const ProjectionModel* cam_;
+  const SmoothView* view_;
+  Eigen::Vector3d p_lidar_;
+};
+
+/// All points of one view in one cost function (Ceres' per-block overhead dominated with
+/// one block per point). The Huber loss is folded into the residual, r' = r sqrt(rho(s)/s)
+/// with s = |r|^2, so that |r'|^2 = rho(s): the same objective as a per-point
+/// ceres::HuberLoss, differentiated exactly through the jets.
+class ViewEdgeCost : public ceres::CostFunction {
+ public:
+  ViewEdgeCost(const ProjectionModel* cam, const SmoothView* view,
+               const std::vector<Eigen::Vector3d>* points, double huber_px)
+      : cam_(cam), view_(view), points_(points), huber_px_(huber_px) {
+    set_num_residuals(2 * static_cast<int>(points->size()));
+    mutable_parameter_block_sizes()->push_back(6);
+  }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const double* x = parameters[0];
+    const size_t n = points_->size();
+    if (jacobians == nullptr || jacobians[0] == nullptr) {
+      for (size_t i = 0; i < n; ++i) {
+        SmoothEdgeResidual(cam_, view_, (*points_)[i])(x, residuals + 2 * i);
+        apply_huber(residuals + 2 * i);
+      }
+      return true;
+    }
+    using Jet = ceres::Jet<double, 6>;
+    Jet xj[6];
+    for (int k = 0; k < 6; ++k) xj[k] = Jet(x[k], k);
+    // The rotation once per evaluation, not once per point (sin/cos of jets are costly).
+    Jet R[9];
+    ceres::AngleAxisToRotationMatrix(xj, ceres::RowMajorAdapter3x3(R));
+    double* J = jacobians[0];  // row-major (2n x 6)
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d& p = (*points_)[i];
+      Jet pc[3], r[2];
+      for (int a = 0; a < 3; ++a) pc[a] = R[3 * a] * p.x() + R[3 * a + 1] * p.y() + R[3 * a + 2] * p.z() + xj[3 + a];
+      SmoothEdgeResidual(cam_, view_, p).from_camera_point(pc, r);
+      apply_huber(r);
+      for (int j = 0; j < 2; ++j) {
+        residuals[2 * i + j] = r[j].a;
+        for (int k = 0; k < 6; ++k) J[(2 * i + j) * 6 + k] = r[j].v[k];
+      }
+    }
+    return true;
+  }
+
+ private:
+  template <typename T>
+  void apply_huber(T* r) const {
+    if (huber_px_ <= 0.0) return;
+    using std::sqrt;
+    const T s = r[0] * r[0] + r[1] * r[1];
+    const double delta2 = huber_px_ * huber_px_;
+    if (value_of(s) <= delta2) return;
+    // rho(s) = 2 delta sqrt(s) - delta^2 beyond delta^2.
+    const T norm = sqrt(s);
+    const T scale = sqrt((T(2.0 * huber_px_) * norm - T(delta2)) / s);
+    r[0] *= scale;
+    r[1] *= scale;
+  }
+  const ProjectionModel* cam_;
+  const SmoothView* view_;
+  const std::vector<Eigen::Vector3d>* points_;
+  double huber_px_;
+};
+
+/// Coarse stage: hole centres projected against the ellipse centres. Its basin is wide
+/// (a PnP refinement), so it brings a poor guess near enough for Eq. (2), whose
+/// nearest-edge attraction alone can shrink a far-off circle onto the near side of its
+/// image (a local minimum along the optical axis).
+struct CenterResidual {
+  CenterResidual(const ProjectionModel* cam, Eigen::Vector3d c, Eigen::Vector2d px)
+      : cam_(cam), center_(std::move(c)), px_(std::move(px)) {}
+  template <typename T>
+  bool operator()(const T* x, T* residual) const {
+    T p_camera[3], uv[2];
+    transform_point(x, center_, p_camera);
+    detail::project_total(*cam_, p_camera, uv);
+    residual[0] = uv[0] - T(px_.x());
+    residual[1] = uv[1] - T(px_.y());
+    return true;
+  }
+  const ProjectionModel* cam_;
+  Eigen::Vector3d center_;
+  Eigen::Vector2d px_;
+};
+
+/// The paper's look-up table (Sec. 3.6): distance transform of the rasterised edges and,
+/// per pixel reached by a projection, a least-squares plane over the 10x10 window around it.
+class PaperPlaneLut {
+ public:
+  PaperPlaneLut(const std::vector<Eigen::Vector2d>& edges, int width, int height, int window)
+      : width_(width), height_(height), window_(window) {
+    cv::Mat edge_image(height, width, CV_8U, cv::Scalar(255));
+    for (const auto& p : edges) {
+      const int u = static_cast<int>(std::lround(p.x()));
+      const int v = static_cast<int>(std::lround(p.y()));
+      if (u >= 0 && v >= 0 && u < width && v < height) edge_image.at<uint8_t>(v, u) = 0;
+    }
+    cv::distanceTransform(edge_image, dt_, cv::DIST_L2, cv::DIST_MASK_PRECISE, CV_32F);
+    planes_.resize(static_cast<size_t>(width) * height);
+    known_.assign(static_cast<size_t>(width) * height, 0);
+  }
+
+  /// Plane value at a continuous pixel: the plane of the nearest pixel (clamped to the
+  /// image) evaluated at (u, v), so central differences see a slope.
+  double value(double u, double v) const {
+    const int iu = std::clamp(static_cast<int>(std::lround(u)), 0, width_ - 1);
+    const int iv = std::clamp(static_cast<int>(std::lround(v)), 0, height_ - 1);
+    const size_t idx = static_cast<size_t>(iv) * width_ + iu;
+    if (!known_[idx]) {
+      planes_[idx] = fit_plane(iu, iv);
+      known_[idx] = 1;
+    }
+    const Eigen::Vector3d& pl = planes_[idx];
+    return pl[0] * (u - iu) + pl[1] * (v - iv) + pl[2];
+  }
+
+ private:
+  // z = a (x - iu) + b (y - iv) + c over the window, least squares.
+  Eigen::Vector3d fit_plane(int iu, int iv) const {
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+    const int lo = -window_ / 2, hi = lo + window_ - 1;
+    for (int dv = lo; dv <= hi; ++dv) {
+      for (int du = lo; du <= hi; ++du) {
+        const int u = std::clamp(iu + du, 0, width_ - 1);
+        const int v = std::clamp(iv + dv, 0, height_ - 1);
+        const Eigen::Vector3d row(u - iu, v - iv, 1.0);
+        A += row * row.transpose();
+        rhs += row * static_cast<double>(dt_.at<float>(v, u));
+      }
+    }
+    return A.ldlt().solve(rhs);
+  }
+  int width_, height_, window_;
+  cv::Mat dt_;
+  mutable std::vector<Eigen::Vector3d> planes_;
+  mutable std::vector<uint8_t> known_;
+};
+
+struct PaperEdgeResidual {
+  PaperEdgeResidual(const ProjectionModel* cam, const PaperPlaneLut* lut, Eigen::Vector3d p)
+      : cam_(cam), lut_(lut), p_lidar_(std::move(p)) {}
+  bool operator()(const double* x, double* residual) const {
+    double p_camera[3], uv[2];
+    transform_point(x, p_lidar_, p_camera);
+    detail::project_total(*cam_, p_camera, uv);
+    residual[0] = lut_->value(uv[0], uv[1]);
+    return true;
+  }
+  const ProjectionModel* cam_;
+  const PaperPlaneLut* lut_;
+  Eigen::Vector3d p_lidar_;
+};
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + mid, v.end());
+  return v[mid];
+}
+
+struct ViewFit {
+  std::vector<double> distances_px;  // per point (inf when behind the camera)
+  int in_image = 0;
+};
+
+ViewFit fit_of_view(const TargetView& view, const EdgeDistanceField& field,
+                    const ProjectionModel& cam, const core::PinholeCamera& camera,
+                    const core::Vector6d& x) {
+  ViewFit fit;
+  fit.distances_px.reserve(view.lidar_circle_points.size());
+  for (const auto& p : view.lidar_circle_points) {
+    double p_camera[3], uv[2];
+    transform_point(x.data(), p, p_camera);
+    if (!(p_camera[2] > detail::kMinDepthM)) {
+      fit.distances_px.push_back(std::numeric_limits<double>::infinity());
+      continue;
+    }
+    detail::project_total(cam, p_camera, uv);
+    const Eigen::Vector2d px(uv[0], uv[1]);
+    if (camera.in_image(px)) ++fit.in_image;
+    fit.distances_px.push_back(field.distance_px(px));
+  }
+  return fit;
+}
+
+std::string usable_reason(const TargetView& view, const core::PinholeCamera& camera) {
+  std::ostringstream os;
+  if (view.lidar_circle_points.empty()) os << "no LIDAR circle points";
+  else if (view.image_edge_points_px.size() < 8)
+    os << "only " << view.image_edge_points_px.size() << " image edge points (expected >= 8)";
+  else if ((view.image_width != 0 && view.image_width != camera.width()) ||
+           (view.image_height != 0 && view.image_height != camera.height()))
+    os << "image is " << view.image_width << " x " << view.image_height
+       << " px but the camera is " << camera.width() << " x " << camera.height();
+  else {
+    for (const auto& p : view.lidar_circle_points)
+      if (!p.allFinite()) return "non-finite LIDAR circle point";
+    for (const auto& p : view.image_edge_points_px)
+      if (!p.allFinite()) return "non-finite image edge point";
+  }
+  return os.str();
+}
+
+std::string view_label(const TargetView& view, size_t i) {
+  return view.name.empty() ? "view " + std::to_string(i) : view.name;
+}
+
+}  // namespace
+
+std::string to_string(EdgeAlignmentMethod method) {
+  return method == EdgeAlignmentMethod::kPaperPlaneFit ? "paper" : "edge";
+}
+
+EdgeAlignmentMethod edge_alignment_method_from_string(const std::string& name) {
+  if (name == "edge") return EdgeAlignmentMethod::kSmoothField;
+  if (name == "paper") return EdgeAlignmentMethod::kPaperPlaneFit;
+  throw std::invalid_argument("edge alignment method '" + name +
+                              "' is unknown (expected 'edge' or 'paper')");
+}
+
+std::string EdgeAlignmentOptions::validate() const {
+  std::ostringstream os;
+  if (!(huber_px >= 0.0)) os << "huber_px = " << huber_px << ", expected >= 0; ";
+  if (max_iterations < 1) os << "max_iterations = " << max_iterations << ", expected >= 1; ";
+  if (!(function_tolerance > 0.0)) os << "function_tolerance must be > 0; ";
+  if (!(parameter_tolerance > 0.0)) os << "parameter_tolerance must be > 0; ";
+  if (paper_window_px < 2) os << "paper_window_px = " << paper_window_px << ", expected >= 2; ";
+  if (!(outlier_rms_ratio > 1.0)) os << "outlier_rms_ratio = " << outlier_rms_ratio << ", expected > 1; ";
+  if (!(outlier_min_rms_px > 0.0)) os << "outlier_min_rms_px = " << outlier_min_rms_px << ", expected > 0; ";
+  if (!(min_in_image_fraction >= 0.0 && min_in_image_fraction <= 1.0))
+    os << "min_in_image_fraction = " << min_in_image_fraction << ", expected in [0, 1]; ";
+  os << field.validate();
+  return os.str();
+}
+
+std::vector<int> EdgeAlignmentResult::outlier_views() const {
+  std::vector<int> out;
+  for (size_t i = 0; i < views.size(); ++i)
+    if (!views[i].used) out.push_back(static_cast<int>(i));
+  return out;
+}
+
+EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
+                                const core::PinholeCamera& camera,
+                                const EdgeAlignmentOptions& options,
+                                std::optional<Eigen::Isometry3d> T_camera_lidar_guess) {
+  const auto t_start = std::chrono::steady_clock::now();
+  if (const std::string why = options.validate(); !why.empty()) {
+    throw std::invalid_argument("align_edges: invalid options: " + why);
+  }
+  EdgeAlignmentResult result;
+  result.views.resize(views.size());
+  std::vector<TargetView> usable_views;
+  std::vector<size_t> usable_index;
+  std::ostringstream reasons;
+  for (size_t i = 0; i < views.size(); ++i) {
+    ViewResidual& vr = result.views[i];
+    vr.name = view_label(views[i], i);
+    vr.num_points = static_cast<int>(views[i].lidar_circle_points.size());
+    vr.reason = usable_reason(views[i], camera);
+    vr.used = vr.reason.empty();
+    if (vr.used) {
+      usable_views.push_back(views[i]);
+      usable_index.push_back(i);
+    } else {
+      reasons << vr.name << ": " << vr.reason << "; ";
+    }
+  }
+  if (usable_views.empty()) {
+    throw std::invalid_argument("align_edges: no usable view among " +
+                                std::to_string(views.size()) + " (" + reasons.str() + ")");
+  }
+
+  if (T_camera_lidar_guess) {
+    result.T_camera_lidar_initial = *T_camera_lidar_guess;
+  } else {
+    const InitialGuessResult guess = closed_form_initial_guess(usable_views, camera);
+    if (!guess.ok) {
+      throw std::invalid_argument("align_edges: no initial guess given and the closed-form "
+                                  "guess failed: " + guess.message);
+    }
+    result.T_camera_lidar_initial = guess.T_camera_lidar;
+    result.initial_from_closed_form = true;
+    core::log_info("extrinsics: closed-form initial guess (", guess.message, ")");
+  }
+
+  const ProjectionModel cam = detail::make_projection_model(camera);
+  const bool paper = options.method == EdgeAlignmentMethod::kPaperPlaneFit;
+  std::vector<std::unique_ptr<SmoothView>> fields;
+  std::vector<std::unique_ptr<PaperPlaneLut>> luts;
+  for (size_t k = 0; k < usable_index.size(); ++k) {
+    const TargetView& v = views[usable_index[k]];
+    // The exact field also measures the per-view fit of the paper's method, so that both
+    // methods are reported on the same scale.
+    fields.push_back(std::make_unique<SmoothView>(v.image_edge_points_px, options.field));
+    if (paper) {
+      luts.push_back(std::make_unique<PaperPlaneLut>(v.image_edge_points_px, camera.width(),
+                                                     camera.height(), options.paper_window_px));
+    }
+  }
+
+  core::Vector6d x = core::to_vector6(result.T_camera_lidar_initial);
+  if (options.coarse_center_stage && !paper) {
+    ceres::Problem problem;
+    int holes = 0;
+    for (size_t k : usable_index) {
+      const TargetView& v = views[k];
+      const size_t n = std::min(v.lidar_centers.size(), v.image_ellipses.size());
+      for (size_t h = 0; h < n; ++h) {
+        const Eigen::Vector2d px(v.image_ellipses[h].center.x, v.image_ellipses[h].center.y);
+        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CenterResidual, 2, 6>(
+                                     new CenterResidual(&cam, v.lidar_centers[h], px)),
+                                 new ceres::HuberLoss(20.0), x.data());
+        ++holes;
+      }
+    }
+    if (holes >= 3) {  // fewer leave the pose unconstrained; go straight to Eq. (2)
+      ceres::Solver::Options o;
+      o.linear_solver_type = ceres::DENSE_QR;
+      o.max_num_iterations = 50;
+      o.logging_type = ceres::SILENT;
+      ceres::Solver::Summary s;
+      ceres::Solve(o, &problem, &s);
+      result.iterations += s.num_successful_steps + s.num_unsuccessful_steps;
+    }
+  }
+  std::vector<bool> active(usable_index.size(), true);
+  ceres::Solver::Summary summary;
+  std::ostringstream message;
+  for (int round = 0;; ++round) {
+    ceres::Problem::Options problem_options;
+    ceres::Problem problem(problem_options);
+    for (size_t k = 0; k < usable_index.size(); ++k) {
+      if (!active[k]) continue;
+      const auto& points = views[usable_index[k]].lidar_circle_points;
+      if (paper) {
+        for (const auto& p : points) {
+          problem.AddResidualBlock(
+              new ceres::NumericDiffCostFunction<PaperEdgeResidual, ceres::CENTRAL, 1, 6>(
+                  new PaperEdgeResidual(&cam, luts[k].get(), p)),
+              nullptr, x.data());
+        }
+      } else {
+        problem.AddResidualBlock(new ViewEdgeCost(&cam, fields[k].get(), &points, options.huber_px),
+                                 nullptr, x.data());
+      }
+    }
+    ceres::Solver::Options solver_options;
+    solver_options.minimizer_type = ceres::TRUST_REGION;
+    solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+    solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+    solver_options.max_num_iterations = options.max_iterations;
+    solver_options.function_tolerance = options.function_tolerance;
+    solver_options.parameter_tolerance = options.parameter_tolerance;
+    solver_options.gradient_tolerance = 1e-14;
+    solver_options.num_threads = 1;
+    solver_options.logging_type = ceres::SILENT;
+    ceres::Solve(solver_options, &problem, &summary);
+    result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+    result.converged = summary.termination_type == ceres::CONVERGENCE;
+
+    // Per-view fit at this solution; reject the worst outlier view, if any, and re-solve.
+    std::vector<double> rms(usable_index.size(), 0.0);
+    std::vector<double> active_rms;
+    for (size_t k = 0; k < usable_index.size(); ++k) {
+      const TargetView& v = views[usable_index[k]];
+      const ViewFit fit = fit_of_view(v, fields[k]->field, cam, camera, x);
+      double sum2 = 0.0;
+      for (double d : fit.distances_px) sum2 += d * d;
+      rms[k] = std::sqrt(sum2 / std::max<size_t>(1, fit.distances_px.size()));
+      ViewResidual& vr = result.views[usable_index[k]];
+      vr.rms_px = rms[k];
+      vr.median_px = median_of(fit.distances_px);
+      vr.num_in_image = fit.in_image;
+      if (active[k]) active_rms.push_back(rms[k]);
+    }
+    if (!options.reject_outlier_views) break;
+    const double median_rms = median_of(active_rms);
+    const double limit = std::max(options.outlier_min_rms_px, options.outlier_rms_ratio * median_rms);
+    int worst = -1;
+    std::string worst_reason;
+    double worst_score = 0.0;
+    for (size_t k = 0; k < usable_index.size(); ++k) {
+      if (!active[k]) continue;
+      const ViewResidual& vr = result.views[usable_index[k]];
+      const double in_fraction = vr.num_points ? double(vr.num_in_image) / vr.num_points : 0.0;
+      std::ostringstream why;
+      double score = 0.0;
+      if (in_fraction < options.min_in_image_fraction) {
+        why << "only " << vr.num_in_image << " of " << vr.num_points
+            << " LIDAR circle points project into the image at the solution";
+        score = std::numeric_limits<double>::max();
+      } else if (rms[k] > limit) {
+        why.precision(3);
+        why << "RMS edge distance " << rms[k] << " px exceeds " << limit
+            << " px (max of outlier_min_rms_px and " << options.outlier_rms_ratio
+            << " x median " << median_rms
+            << " px): its image edges do not match its LIDAR circle";
+        score = rms[k] / limit;
+      }
+      if (score > worst_score) {
+        worst_score = score;
+        worst = static_cast<int>(k);
+        worst_reason = why.str();
+      }
+    }
+    const long n_active = std::count(active.begin(), active.end(), true);
+    if (worst < 0) break;
+    if (n_active <= 1) {
+      message << "the only remaining view is poor (" << worst_reason << "); ";
+      break;
+    }
+    active[worst] = false;
+    ViewResidual& vr = result.views[usable_index[worst]];
+    vr.used = false;
+    vr.reason = worst_reason;
+    core::log_warning("extrinsics: rejected ", vr.name, ": ", worst_reason);
+    message << "rejected " << vr.name << "; ";
+    if (round > static_cast<int>(usable_index.size())) break;
+  }
+
+  result.T_camera_lidar = core::from_vector6(x);
+  double sum2 = 0.0;
+  size_t count = 0;
+  for (size_t k = 0; k < usable_index.size(); ++k) {
+    if (!active[k]) continue;
+    const ViewFit fit = fit_of_view(views[usable_index[k]], fields[k]->field, cam, camera, x);
+    for (double d : fit.distances_px) {
+      sum2 += d * d;
+      ++count;
+    }
+  }
+  result.rms_px = count ? std::sqrt(sum2 / count) : 0.0;
+
+  if (options.compute_covariance && count > 6) {
+    // Covariance of Eq. (2)'s minimiser: (J^T J)^-1 scaled by the residual variance
+    // sigma^2 = sum d^2 / (N - 6). The 360 circle points of a hole come from one circle
+    // fit and are not independent, so this is a lower bound on the real uncertainty.
+    ceres::Problem problem;
+    for (size_t k = 0; k < usable_index.size(); ++k) {
+      if (!active[k]) continue;
+      problem.AddResidualBlock(
+          new ViewEdgeCost(&cam, fields[k].get(), &views[usable_index[k]].lidar_circle_points, 0.0),
+          nullptr, x.data());
+    }
+    ceres::Covariance::Options cov_options;
+    cov_options.algorithm_type = ceres::DENSE_SVD;
+    cov_options.null_space_rank = -1;
+    ceres::Covariance covariance(cov_options);
+    std::vector<std::pair<const double*, const double*>> blocks = {{x.data(), x.data()}};
+    if (covariance.Compute(blocks, &problem)) {
+      covariance.GetCovarianceBlock(x.data(), x.data(), result.covariance.data());
+      result.covariance *= sum2 / static_cast<double>(count - 6);
+      result.covariance_valid = true;
+    }
+  }
+
+  message << (paper ? "paper plane-fit LUT" : "smooth field") << ", "
+          << summary.BriefReport();
+  result.message = message.str();
+  result.solve_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return result;
+}
+
+std::vector<double> point_to_edge_distances(const TargetView& view,
+                                            const core::PinholeCamera& camera,
+                                            const Eigen::Isometry3d& T_camera_lidar) {
+  const EdgeDistanceField field(view.image_edge_points_px);
+  const ProjectionModel cam = detail::make_projection_model(camera);
+  return fit_of_view(view, field, cam, camera, core::to_vector6(T_camera_lidar)).distances_px;
+}
+
+}  // namespace rgbdt::extrinsics
