@@ -1,0 +1,197 @@
+// Runs the rgbdt_camera program: recording from Aravis's in-process fake camera, stopping
+// with SIGINT, and the Tau2 subcommand against the pty emulator.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+#include <thread>
+
+#include "rgbdt/core/time_index.hpp"
+#include "rgbdt/thermal_camera/tau2.hpp"
+
+extern char** environ;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::string program() {
+  const char* dir = std::getenv("RGBDT_BIN_DIR");
+  return std::string(dir != nullptr ? dir : RGBDT_BINARY_DIR "/bin") + "/rgbdt_camera";
+}
+
+fs::path temp_dir(const std::string& name) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" /
+                       (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+/// Starts the program with its output in `log`; returns the pid.
+pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
+  std::vector<std::string> all = {program()};
+  all.insert(all.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : all) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  EXPECT_EQ(rc, 0) << "cannot run " << argv[0];
+  return pid;
+}
+
+/// Waits for the process at most `limit`; kills it (and fails) if it takes longer.
+int wait_exit(pid_t pid, std::chrono::seconds limit) {
+  const auto deadline = Clock::now() + limit;
+  int status = 0;
+  while (::waitpid(pid, &status, WNOHANG) == 0) {
+    if (Clock::now() > deadline) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      ADD_FAILURE() << "program did not exit within " << limit.count() << " s";
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+int run(const std::vector<std::string>& args, const fs::path& log) {
+  return wait_exit(spawn(args, log), std::chrono::seconds(60));
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+/// Every index entry is a whole, readable PNG, and no other PNG or temporary is there.
+void expect_consistent_recording(const fs::path& out, int expected_type) {
+  const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
+  size_t pngs = 0, temporaries = 0;
+  for (const auto& e : fs::directory_iterator(out)) {
+    pngs += e.path().extension() == ".png" ? 1 : 0;
+    temporaries += e.path().extension() == ".tmp" ? 1 : 0;
+  }
+  EXPECT_EQ(temporaries, 0u);
+  EXPECT_EQ(pngs, index.size()) << "PNG files not in the index (or listed but missing)";
+  for (size_t i = 0; i < index.size(); ++i) {
+    const cv::Mat image = cv::imread(index[i].file, cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(image.empty()) << index[i].file;
+    EXPECT_EQ(image.type(), expected_type) << index[i].file;
+    if (i > 0) {
+      EXPECT_GT(index[i].time_s, index[i - 1].time_s) << i;
+    }
+  }
+}
+
+}  // namespace
+
+TEST(RgbdtCamera, HelpExplainsTheSubcommands) {
+  const auto dir = temp_dir("help");
+  EXPECT_EQ(run({"--help"}, dir / "log"), 0);
+  const std::string text = slurp(dir / "log");
+  for (const char* word : {"list", "record", "tau2", "index.csv"}) {
+    EXPECT_NE(text.find(word), std::string::npos) << word;
+  }
+  EXPECT_NE(run({"record", "--out", (dir / "x").string()}, dir / "log2"), 0) << "--id is required";
+  EXPECT_NE(run({"record", "--id", "Fake_1", "--out", (dir / "y").string(), "--frames", "3",
+                 "--seconds", "1"},
+                dir / "log3"),
+            0)
+      << "--frames and --seconds exclude each other";
+}
+
+TEST(RgbdtCamera, ListsTheFakeCamera) {
+  const auto dir = temp_dir("list");
+  ASSERT_EQ(run({"list", "--interfaces", "fake"}, dir / "log"), 0);
+  EXPECT_NE(slurp(dir / "log").find("Fake_1"), std::string::npos) << slurp(dir / "log");
+}
+
+TEST(RgbdtCamera, RecordsSixteenBitFramesWithAnIndex) {
+  const auto dir = temp_dir("rec");
+  const fs::path out = dir / "thermal";
+  ASSERT_EQ(
+      run({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(), "--frames",
+           "30", "--pixel-format", "Mono16", "--roi", "0,0,320,256", "--rate", "100"},
+          dir / "log"),
+      0)
+      << slurp(dir / "log");
+  const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
+  ASSERT_EQ(index.size(), 30u);
+  expect_consistent_recording(out, CV_16UC1);
+  const cv::Mat first = cv::imread(index[0].file, cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(first.cols, 320);
+  EXPECT_EQ(first.rows, 256);
+  EXPECT_NE(slurp(dir / "log").find("recorded 30 frames"), std::string::npos) << slurp(dir / "log");
+  EXPECT_NE(slurp(dir / "log").find("lost 0"), std::string::npos) << slurp(dir / "log");
+}
+
+TEST(RgbdtCamera, RecordsBayerAsColourPng) {
+  const auto dir = temp_dir("rec");
+  const fs::path out = dir / "rgb";
+  ASSERT_EQ(run({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(),
+                 "--frames", "3", "--pixel-format", "BayerRG8", "--rate", "50"},
+                dir / "log"),
+            0)
+      << slurp(dir / "log");
+  expect_consistent_recording(out, CV_8UC3);
+}
+
+TEST(RgbdtCamera, CtrlCLeavesOnlyWholeIndexedFrames) {
+  const auto dir = temp_dir("sigint");
+  const fs::path out = dir / "thermal";
+  const pid_t pid =
+      spawn({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", out.string(), "--seconds",
+             "60", "--pixel-format", "Mono16", "--rate", "100"},
+            dir / "log");
+  // Let it write a few frames (bounded wait), then interrupt it mid-stream.
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  size_t pngs = 0;
+  while (pngs < 20 && Clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    pngs = 0;
+    if (fs::exists(out)) {
+      for (const auto& e : fs::directory_iterator(out))
+        pngs += e.path().extension() == ".png" ? 1 : 0;
+    }
+  }
+  ::kill(pid, SIGINT);
+  EXPECT_EQ(wait_exit(pid, std::chrono::seconds(15)), 0) << slurp(dir / "log");
+  ASSERT_GE(pngs, 20u) << slurp(dir / "log");
+  EXPECT_NE(slurp(dir / "log").find("stopped by signal 2"), std::string::npos)
+      << slurp(dir / "log");
+  expect_consistent_recording(out, CV_16UC1);
+}
+
+TEST(RgbdtCamera, Tau2SubcommandQueriesAndConfiguresTheCamera) {
+  const auto dir = temp_dir("tau2");
+  rgbdt::thermal_camera::Tau2PtyEmulator pty;
+  ASSERT_EQ(run({"tau2", "--port", pty.path(), "--ffc", "--tlinear", "on", "--gain", "high"},
+                dir / "log"),
+            0)
+      << slurp(dir / "log");
+  const std::string text = slurp(dir / "log");
+  EXPECT_NE(text.find("camera serial  123456"), std::string::npos) << text;
+  EXPECT_NE(text.find("tlinear        on, 0.04 K/count"), std::string::npos) << text;
+  EXPECT_NE(text.find("gain mode      high"), std::string::npos) << text;
+  EXPECT_NE(text.find("fpa temp       31.2 degC"), std::string::npos) << text;
+  EXPECT_EQ(pty.with_emulator([](auto& e) { return e.state().ffc_count; }), 1);
+}
