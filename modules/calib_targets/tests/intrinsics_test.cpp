@@ -171,13 +171,14 @@ TEST(Intrinsics, BadViewsAreRejectedWithReasons) {
   EXPECT_NE(det[6].reason.find("empty"), std::string::npos);
   ct::IntrinsicsOptions opt;
   opt.select_distortion = false;
+  opt.min_views = 3;  // one of the five good views may be rejected as an outlier
   const auto res = ct::calibrate_intrinsics(det, names, cv::Size(kW, kH), pattern, opt);
   ASSERT_TRUE(res.ok) << res.reason;
   EXPECT_FALSE(res.views[5].used);
   EXPECT_FALSE(res.views[5].reason.empty());
   // Too few views: a clear error.
   const std::vector<ct::PatternDetection> two(det.begin(), det.begin() + 2);
-  const auto few = ct::calibrate_intrinsics(two, {"a", "b"}, cv::Size(kW, kH), pattern);
+  const auto few = ct::calibrate_intrinsics(two, {"a", "b"}, cv::Size(kW, kH), pattern, opt);
   EXPECT_FALSE(few.ok);
   EXPECT_NE(few.reason.find("usable views"), std::string::npos);
   EXPECT_THROW(ct::pattern_type_from_string("hexagons"), std::invalid_argument);
