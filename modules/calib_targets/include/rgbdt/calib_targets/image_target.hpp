@@ -33,7 +33,9 @@ struct ImageDetectionOptions {
   double smoothing_sigma_px = 1.0;  ///< Gaussian applied before region growing
   double min_range_m = 1.0;   ///< plausible target distances, with fx and the radius,
   double max_range_m = 15.0;  ///< bound the size of a hole in the image
-  double min_contrast = 0.12;  ///< hole/board contrast on the normalised image
+  /// Hole/board contrast on the normalised image; low because the percentiles span the whole
+  /// scene (sky to ground), the board and the cloth behind the hole may differ little.
+  double min_contrast = 0.03;
   double min_axis_ratio = 0.25;  ///< ellipse minor/major axis (board tilt up to ~75 deg)
   /// Sub-pixel search half-length along the gradient [px].
   double edge_search_px = 4.0;

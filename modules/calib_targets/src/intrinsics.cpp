@@ -1,0 +1,516 @@
+#include "rgbdt/calib_targets/intrinsics.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <stdexcept>
+
+#include "rgbdt/calib_targets/image_target.hpp"
+
+namespace rgbdt::calib_targets {
+
+namespace {
+
+using core::DistortionModel;
+
+struct Model {
+  std::string terms;
+  int flags = 0;
+  std::vector<int> free;  ///< indices of estimated coefficients in the distortion vector
+};
+
+std::vector<Model> candidate_models(DistortionModel model, bool select) {
+  if (model == DistortionModel::kEquidistant) {
+    const int base = cv::fisheye::CALIB_RECOMPUTE_EXTRINSIC | cv::fisheye::CALIB_FIX_SKEW;
+    std::vector<Model> all = {
+        {"k1 k2", base | cv::fisheye::CALIB_FIX_K3 | cv::fisheye::CALIB_FIX_K4, {0, 1}},
+        {"k1 k2 k3", base | cv::fisheye::CALIB_FIX_K4, {0, 1, 2}},
+        {"k1 k2 k3 k4", base, {0, 1, 2, 3}}};
+    return select ? all : std::vector<Model>{all.back()};
+  }
+  std::vector<Model> all = {
+      {"k1 k2", cv::CALIB_ZERO_TANGENT_DIST | cv::CALIB_FIX_K3, {0, 1}},
+      {"k1 k2 p1 p2", cv::CALIB_FIX_K3, {0, 1, 2, 3}},
+      {"k1 k2 k3", cv::CALIB_ZERO_TANGENT_DIST, {0, 1, 4}},
+      {"k1 k2 p1 p2 k3", 0, {0, 1, 2, 3, 4}}};
+  return select ? all : std::vector<Model>{all.back()};
+}
+
+struct Fit {
+  bool ok = false;
+  cv::Mat K, D;
+  std::vector<cv::Mat> rvecs, tvecs;
+  double rms = 0.0;
+  cv::Mat std_intrinsics;  ///< plumb_bob only (OpenCV)
+};
+
+Fit fit(DistortionModel model, const Model& m, const std::vector<std::vector<cv::Point3f>>& obj,
+        const std::vector<std::vector<cv::Point2f>>& img, cv::Size size) {
+  Fit f;
+  try {
+    if (model == DistortionModel::kEquidistant) {
+      std::vector<std::vector<cv::Point3d>> o(obj.size());
+      std::vector<std::vector<cv::Point2d>> i(img.size());
+      for (std::size_t v = 0; v < obj.size(); ++v) {
+        for (const auto& p : obj[v]) o[v].emplace_back(p.x, p.y, p.z);
+        for (const auto& p : img[v]) i[v].emplace_back(p.x, p.y);
+      }
+      f.K = cv::Mat::eye(3, 3, CV_64F);
+      f.D = cv::Mat::zeros(4, 1, CV_64F);
+      f.rms = cv::fisheye::calibrate(o, i, size, f.K, f.D, f.rvecs, f.tvecs, m.flags,
+                                     cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-10));
+    } else {
+      cv::Mat std_ext, per_view;
+      f.rms = cv::calibrateCamera(obj, img, size, f.K, f.D, f.rvecs, f.tvecs, f.std_intrinsics, std_ext,
+                                  per_view, m.flags,
+                                  cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-12));
+      f.D = f.D.reshape(1, static_cast<int>(f.D.total()));
+      if (f.D.rows > 5) f.D = f.D.rowRange(0, 5).clone();
+    }
+    f.ok = std::isfinite(f.rms);
+  } catch (const cv::Exception&) {
+    f.ok = false;
+  }
+  return f;
+}
+
+std::vector<cv::Point2f> project(DistortionModel model, const std::vector<cv::Point3f>& obj,
+                                 const cv::Mat& rvec, const cv::Mat& tvec, const cv::Mat& K, const cv::Mat& D) {
+  std::vector<cv::Point2f> out;
+  if (model == DistortionModel::kEquidistant) {
+    std::vector<cv::Point3d> o;
+    for (const auto& p : obj) o.emplace_back(p.x, p.y, p.z);
+    std::vector<cv::Point2d> px;
+    cv::fisheye::projectPoints(o, px, rvec, tvec, K, D);
+    for (const auto& p : px) out.emplace_back(static_cast<float>(p.x), static_cast<float>(p.y));
+  } else {
+    cv::projectPoints(obj, rvec, tvec, K, D, out);
+  }
+  return out;
+}
+
+double rms_of(const std::vector<cv::Point2f>& a, const std::vector<cv::Point2f>& b) {
+  double s = 0.0;
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    const double dx = a[k].x - b[k].x, dy = a[k].y - b[k].y;
+    s += dx * dx + dy * dy;
+  }
+  return a.empty() ? 0.0 : std::sqrt(s / static_cast<double>(a.size()));
+}
+
+/// Held-out reprojection RMS of a view posed with solvePnP under given intrinsics.
+double heldout_rms(DistortionModel model, const std::vector<cv::Point3f>& obj,
+                   const std::vector<cv::Point2f>& img, const cv::Mat& K, const cv::Mat& D) {
+  cv::Mat rvec, tvec;
+  if (model == DistortionModel::kEquidistant) {
+    std::vector<cv::Point2f> und;
+    cv::fisheye::undistortPoints(img, und, K, D);
+    cv::solvePnP(obj, und, cv::Mat::eye(3, 3, CV_64F), cv::Mat(), rvec, tvec);
+  } else {
+    cv::solvePnP(obj, img, K, D, rvec, tvec);
+  }
+  // Refine the pose on the full model (solvePnP's LM on plumb_bob is exact already).
+  return rms_of(project(model, obj, rvec, tvec, K, D), img);
+}
+
+/// 1-sigma of the intrinsics from the Gauss-Newton normal matrix (numeric Jacobian over
+/// intrinsics and all poses), scaled by the residual variance. Used for the equidistant
+/// model, for which OpenCV reports none.
+std::vector<double> numeric_std(DistortionModel model, const Model& m, const Fit& f,
+                                const std::vector<std::vector<cv::Point3f>>& obj,
+                                const std::vector<std::vector<cv::Point2f>>& img) {
+  const int ni = 4 + static_cast<int>(m.free.size());
+  const int nv = static_cast<int>(obj.size());
+  const int np = ni + 6 * nv;
+  int nr = 0;
+  for (const auto& o : obj) nr += 2 * static_cast<int>(o.size());
+  Eigen::MatrixXd J = Eigen::MatrixXd::Zero(nr, np);
+  Eigen::VectorXd r0(nr);
+  auto residuals_view = [&](int v, const cv::Mat& K, const cv::Mat& D, const cv::Mat& rv, const cv::Mat& tv) {
+    return project(model, obj[static_cast<std::size_t>(v)], rv, tv, K, D);
+  };
+  std::vector<int> offset(static_cast<std::size_t>(nv) + 1, 0);
+  for (int v = 0; v < nv; ++v) offset[static_cast<std::size_t>(v) + 1] = offset[static_cast<std::size_t>(v)] + 2 * static_cast<int>(obj[static_cast<std::size_t>(v)].size());
+  double rss = 0.0;
+  for (int v = 0; v < nv; ++v) {
+    const auto p = residuals_view(v, f.K, f.D, f.rvecs[static_cast<std::size_t>(v)], f.tvecs[static_cast<std::size_t>(v)]);
+    for (std::size_t k = 0; k < p.size(); ++k) {
+      const double dx = p[k].x - img[static_cast<std::size_t>(v)][k].x, dy = p[k].y - img[static_cast<std::size_t>(v)][k].y;
+      rss += dx * dx + dy * dy;
+    }
+  }
+  auto column = [&](int v, const std::vector<cv::Point2f>& plus, const std::vector<cv::Point2f>& minus, double h, int c) {
+    for (std::size_t k = 0; k < plus.size(); ++k) {
+      J(offset[static_cast<std::size_t>(v)] + 2 * static_cast<int>(k), c) = (plus[k].x - minus[k].x) / (2 * h);
+      J(offset[static_cast<std::size_t>(v)] + 2 * static_cast<int>(k) + 1, c) = (plus[k].y - minus[k].y) / (2 * h);
+    }
+  };
+  for (int c = 0; c < ni; ++c) {
+    cv::Mat Kp = f.K.clone(), Km = f.K.clone(), Dp = f.D.clone(), Dm = f.D.clone();
+    double h = 0.0;
+    if (c < 4) {
+      const int rr = c == 0 ? 0 : c == 1 ? 1 : c == 2 ? 0 : 1;
+      const int cc = c == 0 ? 0 : c == 1 ? 1 : 2;
+      h = 1e-3 * std::max(1.0, std::abs(f.K.at<double>(rr, cc)));
+      Kp.at<double>(rr, cc) += h;
+      Km.at<double>(rr, cc) -= h;
+    } else {
+      const int d = m.free[static_cast<std::size_t>(c - 4)];
+      h = 1e-6;
+      Dp.at<double>(d) += h;
+      Dm.at<double>(d) -= h;
+    }
+    for (int v = 0; v < nv; ++v) {
+      column(v, residuals_view(v, Kp, Dp, f.rvecs[static_cast<std::size_t>(v)], f.tvecs[static_cast<std::size_t>(v)]),
+             residuals_view(v, Km, Dm, f.rvecs[static_cast<std::size_t>(v)], f.tvecs[static_cast<std::size_t>(v)]), h, c);
+    }
+  }
+  for (int v = 0; v < nv; ++v) {
+    for (int q = 0; q < 6; ++q) {
+      cv::Mat rp = f.rvecs[static_cast<std::size_t>(v)].clone(), rm = rp.clone();
+      cv::Mat tp = f.tvecs[static_cast<std::size_t>(v)].clone(), tm = tp.clone();
+      rp.convertTo(rp, CV_64F);
+      rm.convertTo(rm, CV_64F);
+      tp.convertTo(tp, CV_64F);
+      tm.convertTo(tm, CV_64F);
+      const double h = 1e-6;
+      if (q < 3) {
+        rp.at<double>(q) += h;
+        rm.at<double>(q) -= h;
+      } else {
+        tp.at<double>(q - 3) += h;
+        tm.at<double>(q - 3) -= h;
+      }
+      column(v, residuals_view(v, f.K, f.D, rp, tp), residuals_view(v, f.K, f.D, rm, tm), h, ni + 6 * v + q);
+    }
+  }
+  const double sigma2 = rss / std::max(1, nr - np);
+  const Eigen::MatrixXd cov = (J.transpose() * J).ldlt().solve(Eigen::MatrixXd::Identity(np, np)) * sigma2;
+  std::vector<double> out;
+  for (int c = 0; c < ni; ++c) out.push_back(std::sqrt(std::max(0.0, cov(c, c))));
+  return out;
+}
+
+}  // namespace
+
+PatternType pattern_type_from_string(const std::string& name) {
+  if (name == "checkerboard" || name == "chessboard") return PatternType::kCheckerboard;
+  if (name == "circles") return PatternType::kCircles;
+  if (name == "acircles") return PatternType::kAsymmetricCircles;
+  throw std::invalid_argument("pattern '" + name + "': expected checkerboard, circles or acircles");
+}
+
+std::string to_string(PatternType type) {
+  switch (type) {
+    case PatternType::kCheckerboard: return "checkerboard";
+    case PatternType::kCircles: return "circles";
+    case PatternType::kAsymmetricCircles: return "acircles";
+  }
+  return "checkerboard";
+}
+
+std::string PatternSpec::validate() const {
+  std::ostringstream s;
+  if (cols < 2 || rows < 2) s << "pattern size " << cols << "x" << rows << " must be at least 2x2; ";
+  if (!(spacing_m > 0)) s << "spacing_m = " << spacing_m << " must be > 0; ";
+  return s.str();
+}
+
+std::vector<cv::Point3f> PatternSpec::object_points() const {
+  std::vector<cv::Point3f> out;
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < cols; ++c) {
+      if (type == PatternType::kAsymmetricCircles) {
+        // OpenCV's asymmetric grid: spacing is the distance between neighbours in a row/2.
+        out.emplace_back(static_cast<float>((2 * c + r % 2) * spacing_m), static_cast<float>(r * spacing_m), 0.f);
+      } else {
+        out.emplace_back(static_cast<float>(c * spacing_m), static_cast<float>(r * spacing_m), 0.f);
+      }
+    }
+  }
+  return out;
+}
+
+std::string PatternDetectionOptions::validate() const {
+  std::ostringstream s;
+  if (!(low_percentile >= 0 && high_percentile <= 100 && low_percentile < high_percentile)) s << "percentiles must satisfy 0 <= low < high <= 100; ";
+  if (subpix_window_px < 1) s << "subpix_window_px must be >= 1; ";
+  return s.str();
+}
+
+std::string IntrinsicsOptions::validate() const {
+  std::ostringstream s;
+  if (model != DistortionModel::kPlumbBob && model != DistortionModel::kEquidistant) s << "model must be plumb_bob or equidistant; ";
+  if (folds < 2) s << "folds = " << folds << " must be >= 2; ";
+  if (!(outlier_factor > 1)) s << "outlier_factor must be > 1; ";
+  if (!(max_view_rms_px > 0)) s << "max_view_rms_px must be > 0; ";
+  if (min_views < 3) s << "min_views must be >= 3; ";
+  return s.str();
+}
+
+PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern,
+                                const PatternDetectionOptions& options) {
+  if (const std::string e = pattern.validate() + options.validate(); !e.empty()) throw std::invalid_argument(e);
+  PatternDetection det;
+  if (image.empty()) {
+    det.reason = "empty image";
+    return det;
+  }
+  const cv::Mat f = normalise_image(image, options.low_percentile, options.high_percentile);
+  cv::Mat u8;
+  f.convertTo(u8, CV_8U, 255.0);
+  const cv::Size size(pattern.cols, pattern.rows);
+  struct Variant {
+    cv::Mat img;
+    bool inverted;
+    double scale;
+    std::string name;
+  };
+  std::vector<Variant> variants = {{u8, false, 1.0, "normalised"}};
+  if (options.try_inverted) variants.push_back({255 - u8, true, 1.0, "normalised inverted"});
+  if (options.try_clahe) {
+    cv::Mat c;
+    cv::createCLAHE(3.0, cv::Size(8, 8))->apply(u8, c);
+    variants.push_back({c, false, 1.0, "CLAHE"});
+    if (options.try_inverted) variants.push_back({255 - c, true, 1.0, "CLAHE inverted"});
+  }
+  if (options.try_upscale) {
+    cv::Mat up;
+    cv::resize(u8, up, cv::Size(), 2.0, 2.0, cv::INTER_CUBIC);
+    variants.push_back({up, false, 2.0, "normalised 2x"});
+    if (options.try_inverted) variants.push_back({255 - up, true, 2.0, "normalised inverted 2x"});
+  }
+  // Cheapest attempts first: every variant with the default detectors, then the
+  // exhaustive sector-based search on the normalised image only.
+  // Attempts: (variant, mode) with mode 0 = sector-based detector (SB), 1 = SB exhaustive,
+  // 2 = classic quad detector (its corners are less accurate, so it comes last).
+  std::vector<std::pair<const Variant*, int>> attempts;
+  for (const Variant& v : variants) attempts.emplace_back(&v, 0);
+  if (pattern.type == PatternType::kCheckerboard) {
+    attempts.emplace_back(&variants[0], 1);
+    for (const Variant& v : variants) attempts.emplace_back(&v, 2);
+  }
+  for (const auto& [vp, mode] : attempts) {
+    const bool exhaustive = mode == 1;
+    const Variant& v = *vp;
+    std::vector<cv::Point2f> pts;
+    bool found = false;
+    std::string method;
+    if (pattern.type == PatternType::kCheckerboard) {
+      if (mode < 2) {
+        const int sb_flags = cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_ACCURACY | (exhaustive ? cv::CALIB_CB_EXHAUSTIVE : 0);
+        found = cv::findChessboardCornersSB(v.img, size, pts, sb_flags);
+        method = exhaustive ? "findChessboardCornersSB (exhaustive)" : "findChessboardCornersSB";
+      } else {
+        found = cv::findChessboardCorners(v.img, size, pts,
+                                          cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FILTER_QUADS);
+        method = "findChessboardCorners";
+      }
+    } else {
+      cv::SimpleBlobDetector::Params p;
+      p.filterByColor = true;
+      p.blobColor = v.inverted ? 255 : 0;
+      p.minArea = 8.0f * static_cast<float>(v.scale * v.scale);
+      p.maxArea = static_cast<float>(0.05 * static_cast<double>(v.img.total()));
+      p.filterByCircularity = true;
+      p.minCircularity = 0.5f;
+      p.filterByInertia = true;
+      p.minInertiaRatio = 0.1f;
+      p.filterByConvexity = true;
+      p.minConvexity = 0.8f;
+      auto blob = cv::SimpleBlobDetector::create(p);
+      const int grid = pattern.type == PatternType::kCircles ? cv::CALIB_CB_SYMMETRIC_GRID : cv::CALIB_CB_ASYMMETRIC_GRID;
+      found = cv::findCirclesGrid(v.img, size, pts, grid, blob);
+      method = "findCirclesGrid";
+      if (!found) {
+        found = cv::findCirclesGrid(v.img, size, pts, grid | cv::CALIB_CB_CLUSTERING, blob);
+        method = "findCirclesGrid (clustering)";
+      }
+    }
+    if (!found || pts.size() != static_cast<std::size_t>(pattern.cols * pattern.rows)) continue;
+    for (auto& p : pts) p *= static_cast<float>(1.0 / v.scale);
+    if (v.scale != 1.0) {
+      // Keep the sub-pixel offset of the centre convention: (x + 0.5) / s - 0.5.
+      for (auto& p : pts) p += cv::Point2f(static_cast<float>(0.5 / v.scale - 0.5), static_cast<float>(0.5 / v.scale - 0.5));
+    }
+    if (pattern.type == PatternType::kCheckerboard) {
+      // Refine on the original data (normalised float, no 8-bit quantisation).
+      cv::cornerSubPix(f, pts, cv::Size(options.subpix_window_px, options.subpix_window_px), cv::Size(-1, -1),
+                       cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
+    }
+    det.ok = true;
+    det.points = pts;
+    det.inverted = v.inverted;
+    det.method = method + " on " + v.name;
+    return det;
+  }
+  det.reason = "pattern " + std::to_string(pattern.cols) + "x" + std::to_string(pattern.rows) + " " +
+               to_string(pattern.type) + " not found in either polarity";
+  return det;
+}
+
+IntrinsicsResult calibrate_intrinsics(const std::vector<PatternDetection>& detections,
+                                      const std::vector<std::string>& names, cv::Size image_size,
+                                      const PatternSpec& pattern, const IntrinsicsOptions& options) {
+  if (const std::string e = pattern.validate() + options.validate(); !e.empty()) throw std::invalid_argument(e);
+  if (names.size() != detections.size()) throw std::invalid_argument("names and detections differ in size");
+  IntrinsicsResult res;
+  res.views.resize(detections.size());
+  const std::vector<cv::Point3f> board = pattern.object_points();
+  std::vector<std::size_t> used;
+  for (std::size_t v = 0; v < detections.size(); ++v) {
+    res.views[v].name = names[v];
+    res.views[v].points = detections[v].points;
+    if (detections[v].ok) {
+      used.push_back(v);
+    } else {
+      res.views[v].reason = detections[v].reason;
+    }
+  }
+  const auto models = candidate_models(options.model, options.select_distortion);
+  auto gather = [&](const std::vector<std::size_t>& which, std::vector<std::vector<cv::Point3f>>* o,
+                    std::vector<std::vector<cv::Point2f>>* i) {
+    o->clear();
+    i->clear();
+    for (std::size_t v : which) {
+      o->push_back(board);
+      i->push_back(detections[v].points);
+    }
+  };
+  std::vector<std::vector<cv::Point3f>> obj;
+  std::vector<std::vector<cv::Point2f>> img;
+  // Outlier views: calibrate with the fullest model, reject views far above the median.
+  for (int round = 0; round < 3; ++round) {
+    if (static_cast<int>(used.size()) < options.min_views) break;
+    gather(used, &obj, &img);
+    const Fit f = fit(options.model, models.back(), obj, img, image_size);
+    if (!f.ok) break;
+    std::vector<double> rms;
+    for (std::size_t k = 0; k < used.size(); ++k) rms.push_back(rms_of(project(options.model, board, f.rvecs[k], f.tvecs[k], f.K, f.D), img[k]));
+    std::vector<double> sorted = rms;
+    std::sort(sorted.begin(), sorted.end());
+    const double limit = std::max(options.outlier_factor * sorted[sorted.size() / 2], options.max_view_rms_px);
+    std::vector<std::size_t> keep;
+    for (std::size_t k = 0; k < used.size(); ++k) {
+      if (rms[k] <= limit) {
+        keep.push_back(used[k]);
+      } else {
+        std::ostringstream s;
+        s << "reprojection RMS " << rms[k] << " px above the limit " << limit << " px (unreliable detection)";
+        res.views[used[k]].reason = s.str();
+      }
+    }
+    if (keep.size() == used.size()) break;
+    used = keep;
+  }
+  if (static_cast<int>(used.size()) < options.min_views) {
+    res.reason = "only " + std::to_string(used.size()) + " usable views, need " + std::to_string(options.min_views);
+    return res;
+  }
+  gather(used, &obj, &img);
+  // Distortion terms by K-fold cross-validation over views.
+  std::size_t chosen = models.size() - 1;
+  if (models.size() > 1) {
+    const int folds = std::min<int>(options.folds, static_cast<int>(used.size()));
+    double best = 1e18;
+    for (std::size_t m = 0; m < models.size(); ++m) {
+      double se = 0.0;
+      int n = 0;
+      for (int k = 0; k < folds; ++k) {
+        std::vector<std::size_t> train, test;
+        for (std::size_t i = 0; i < used.size(); ++i) (static_cast<int>(i) % folds == k ? test : train).push_back(i);
+        std::vector<std::vector<cv::Point3f>> o;
+        std::vector<std::vector<cv::Point2f>> im;
+        for (std::size_t i : train) {
+          o.push_back(obj[i]);
+          im.push_back(img[i]);
+        }
+        const Fit f = fit(options.model, models[m], o, im, image_size);
+        if (!f.ok) {
+          se = 1e18;
+          break;
+        }
+        for (std::size_t i : test) {
+          const double r = heldout_rms(options.model, obj[i], img[i], f.K, f.D);
+          se += r * r * static_cast<double>(obj[i].size());
+          n += static_cast<int>(obj[i].size());
+        }
+      }
+      const Fit all = fit(options.model, models[m], obj, img, image_size);
+      ModelCandidate c;
+      c.terms = models[m].terms;
+      c.heldout_rms_px = n > 0 ? std::sqrt(se / n) : 1e9;
+      c.train_rms_px = all.ok ? all.rms : 1e9;
+      res.candidates.push_back(c);
+      best = std::min(best, c.heldout_rms_px);
+    }
+    // The simplest model (fewest terms) within min_improvement of the best.
+    std::size_t pick = models.size() - 1;
+    for (std::size_t m = 0; m < models.size(); ++m) {
+      if (res.candidates[m].heldout_rms_px <= best * (1.0 + options.min_improvement) &&
+          models[m].free.size() < models[pick].free.size()) {
+        pick = m;
+      } else if (res.candidates[m].heldout_rms_px <= best * (1.0 + options.min_improvement) &&
+                 models[m].free.size() == models[pick].free.size() &&
+                 res.candidates[m].heldout_rms_px < res.candidates[pick].heldout_rms_px) {
+        pick = m;
+      }
+    }
+    chosen = pick;
+  }
+  const Model& m = models[chosen];
+  const Fit f = fit(options.model, m, obj, img, image_size);
+  if (!f.ok) {
+    res.reason = "calibration did not converge";
+    return res;
+  }
+  res.distortion_terms = m.terms;
+  res.rms_px = f.rms;
+  auto& k = res.intrinsics;
+  k.width = image_size.width;
+  k.height = image_size.height;
+  k.fx = f.K.at<double>(0, 0);
+  k.fy = f.K.at<double>(1, 1);
+  k.cx = f.K.at<double>(0, 2);
+  k.cy = f.K.at<double>(1, 2);
+  k.model = options.model;
+  for (int i = 0; i < static_cast<int>(f.D.total()); ++i) k.distortion.push_back(f.D.at<double>(i));
+  res.parameter_names = {"fx", "fy", "cx", "cy"};
+  res.parameters = {k.fx, k.fy, k.cx, k.cy};
+  static const char* kPlumb[] = {"k1", "k2", "p1", "p2", "k3"};
+  static const char* kFish[] = {"k1", "k2", "k3", "k4"};
+  for (int d : m.free) {
+    res.parameter_names.push_back(options.model == DistortionModel::kEquidistant ? kFish[d] : kPlumb[d]);
+    res.parameters.push_back(k.distortion[static_cast<std::size_t>(d)]);
+  }
+  if (options.model == DistortionModel::kPlumbBob && !f.std_intrinsics.empty()) {
+    // OpenCV's order: fx fy cx cy k1 k2 p1 p2 k3 ...
+    for (int i = 0; i < 4; ++i) res.std_devs.push_back(f.std_intrinsics.at<double>(i));
+    for (int d : m.free) res.std_devs.push_back(f.std_intrinsics.at<double>(4 + d));
+  } else {
+    res.std_devs = numeric_std(options.model, m, f, obj, img);
+  }
+  // Per-view errors and coverage.
+  cv::Mat cells(8, 8, CV_8U, cv::Scalar(0));
+  for (std::size_t i = 0; i < used.size(); ++i) {
+    auto& v = res.views[used[i]];
+    v.used = true;
+    v.reprojected = project(options.model, board, f.rvecs[i], f.tvecs[i], f.K, f.D);
+    v.rms_px = rms_of(v.reprojected, v.points);
+    for (const auto& p : v.points) {
+      const int cx = std::clamp(static_cast<int>(p.x / image_size.width * 8), 0, 7);
+      const int cy = std::clamp(static_cast<int>(p.y / image_size.height * 8), 0, 7);
+      cells.at<uchar>(cy, cx) = 1;
+    }
+  }
+  res.coverage = cv::countNonZero(cells) / 64.0;
+  res.ok = true;
+  return res;
+}
+
+}  // namespace rgbdt::calib_targets
