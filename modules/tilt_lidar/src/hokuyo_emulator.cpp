@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <random>
 #include <sstream>
 
 #include "rgbdt/core/error.hpp"
@@ -125,8 +126,22 @@ void HokuyoEmulator::start() {
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  addr.sin_port = htons(static_cast<std::uint16_t>(port_));
-  if (::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(listen_fd_, 1) != 0) {
+  bool bound = false;
+  if (port_ == 0) {
+    // Not an ephemeral port (Linux: 32768-60999): while the emulator is stopped, a client
+    // retrying connect() to an ephemeral port can be given that same port as its source
+    // and connect to itself (TCP simultaneous open), then block writing to itself.
+    std::mt19937 rng(static_cast<unsigned>(::getpid()) ^ static_cast<unsigned>(reinterpret_cast<std::uintptr_t>(this)));
+    for (int attempt = 0; attempt < 200 && !bound; ++attempt) {
+      const int candidate = 20000 + static_cast<int>(rng() % 12000);
+      addr.sin_port = htons(static_cast<std::uint16_t>(candidate));
+      bound = ::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+    }
+  } else {
+    addr.sin_port = htons(static_cast<std::uint16_t>(port_));
+    bound = ::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+  }
+  if (!bound || ::listen(listen_fd_, 1) != 0) {
     const std::string why = std::strerror(errno);
     ::close(listen_fd_);
     listen_fd_ = -1;

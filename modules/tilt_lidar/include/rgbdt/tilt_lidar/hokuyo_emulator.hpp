@@ -62,7 +62,7 @@ class ScipDevice {
 using RangeSource = std::function<scip::ScanFrame(std::int64_t index, double time_s)>;
 
 struct HokuyoEmulatorOptions {
-  int port = 0;                 ///< TCP port on 127.0.0.1; 0 picks a free one
+  int port = 0;                 ///< TCP port on 127.0.0.1; 0 picks a free one in 20000-31999
   double scan_period_s = 0.025; ///< UTM-30LX: 40 scans/s
   std::size_t keep_served = 4096;  ///< served scans remembered for tests
   EmulatedDeviceSpec device;
