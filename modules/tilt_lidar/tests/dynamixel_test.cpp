@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <random>
 #include <thread>
@@ -160,35 +161,44 @@ TEST(SweepController, SweepsBetweenTheLimitsAtTheSetSpeed) {
   sweep.start();
   std::vector<SweepController::Reading> readings;
   int turns = 0, dir = sweep.direction();
-  while (clock() < 1.6) {
+  // 0 -> 0.2 -> -0.2 -> 0.2 takes ~1 s at 1 rad/s; run until the second turn has been
+  // ridden out (with a generous limit: on a loaded machine each round trip is slower).
+  double second_turn_s = -1.0;
+  while (clock() < 8.0 && (second_turn_s < 0 || clock() < second_turn_s + 0.15)) {
     if (auto r = sweep.step()) readings.push_back(*r);
     if (sweep.direction() != dir) {
-      ++turns;
       dir = sweep.direction();
+      if (++turns == 2) second_turn_s = clock();
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(4));
   }
   sweep.stop();
-  ASSERT_GT(readings.size(), 100u);  // ~200 Hz minus scheduling
-  double lo = 1e9, hi = -1e9, max_speed = 0;
+  ASSERT_GE(turns, 2);
+  ASSERT_GT(readings.size(), 20u);
+  double lo = 1e9, hi = -1e9;
+  std::vector<double> speeds;
   for (std::size_t k = 1; k < readings.size(); ++k) {
-    EXPECT_GT(readings[k].sample.time_s, readings[k - 1].sample.time_s);
-    lo = std::min(lo, readings[k].sample.angle_rad);
-    hi = std::max(hi, readings[k].sample.angle_rad);
-    const double dt = readings[k].sample.time_s - readings[k - 1].sample.time_s;
-    if (dt > 2e-3) max_speed = std::max(max_speed, std::abs(readings[k].sample.angle_rad - readings[k - 1].sample.angle_rad) / dt);
+    const auto& a = readings[k - 1].sample;
+    const auto& b = readings[k].sample;
+    EXPECT_GT(b.time_s, a.time_s);
+    lo = std::min(lo, b.angle_rad);
+    hi = std::max(hi, b.angle_rad);
+    // Cruise: both readings in the middle of the sweep, away from the decelerations.
+    if (std::abs(a.angle_rad) < 0.12 && std::abs(b.angle_rad) < 0.12 && b.time_s - a.time_s > 0.003) {
+      speeds.push_back(std::abs(b.angle_rad - a.angle_rad) / (b.time_s - a.time_s));
+    }
   }
-  // 0 -> 0.2 -> -0.2 -> 0.2 in 1.6 s at 1 rad/s: at least two turns.
-  EXPECT_GE(turns, 2);
   // The motor decelerates into each limit (a = 40 rad/s^2), so it reaches it within the
   // turn tolerance and overshoots by less than v^2 / 2a = 0.0125 rad.
   EXPECT_GT(hi, so.upper_rad - 0.01);
   EXPECT_LT(hi, so.upper_rad + 0.0125);
   EXPECT_LT(lo, so.lower_rad + 0.01);
   EXPECT_GT(lo, so.lower_rad - 0.0125);
-  // Cruise speed is the set speed; finite differences of stamped readings carry the
-  // stamp jitter (round trip ~1 ms over >= 2 ms): within 30%.
-  EXPECT_NEAR(max_speed, so.speed_rad_s, 0.3);
+  // Cruise speed is the set speed. Each stamp is the midpoint of a round trip, so a speed
+  // from two stamps carries their jitter; the median over the cruise is within 20%.
+  ASSERT_GE(speeds.size(), 5u);
+  std::nth_element(speeds.begin(), speeds.begin() + speeds.size() / 2, speeds.end());
+  EXPECT_NEAR(speeds[speeds.size() / 2], so.speed_rad_s, 0.2);
 }
 
 }  // namespace
