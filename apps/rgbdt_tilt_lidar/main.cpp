@@ -1,0 +1,261 @@
+// rgbdt_tilt_lidar: record the raw stream of a tilting LIDAR (Hokuyo + Dynamixel tilt motor)
+// into an MRPT rawlog, assemble a rawlog into one PCD per tilt, or summarise a rawlog.
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <thread>
+
+#include <mrpt/config/CConfigFile.h>
+#include <mrpt/config/CConfigFileMemory.h>
+#include <mrpt/core/Clock.h>
+
+#include "rgbdt/cloud/pcd_io.hpp"
+#include "rgbdt/core/error.hpp"
+#include "rgbdt/core/log.hpp"
+#include "rgbdt/core/tilt_rig.hpp"
+#include "rgbdt/core/time_index.hpp"
+#include "rgbdt/tilt_lidar/assembler.hpp"
+#include "rgbdt/tilt_lidar/emulated_rig.hpp"
+#include "rgbdt/tilt_lidar/rawlog_io.hpp"
+#include "rgbdt/tilt_lidar/tilt_lidar_sensor.hpp"
+
+namespace fs = std::filesystem;
+using namespace rgbdt;
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+void on_signal(int) { g_stop = true; }
+
+struct RecordArgs {
+  std::string config, section = "TILT_LIDAR", out, rig_out;
+  double duration_s = 0;
+  bool emulate = false;
+  int kill_scanner_at_s = -1, scanner_back_at_s = -1;  // emulated outage, for demos/tests
+};
+
+int record(const RecordArgs& a) {
+  if (!fs::exists(a.config)) throw core::Error(a.config, "config file does not exist");
+  mrpt::config::CConfigFile ini(a.config);
+  tilt_lidar::TiltLidarConfig cfg;
+  std::unique_ptr<tilt_lidar::EmulatedRig> emu;
+  if (a.emulate) {
+    // Devices emulated in-process; the INI still gives geometry, limits and speeds.
+    mrpt::config::CConfigFileMemory mem;
+    std::vector<std::string> keys;
+    ini.getAllKeys(a.section, keys);
+    for (const auto& k : keys) mem.write(a.section, k, ini.read_string(a.section, k, ""));
+    tilt_lidar::EmulatedRigOptions eo;
+    eo.motor.table.counts_per_revolution = mem.read_double(a.section, "DXL_counts_per_rev", 501923.0);
+    emu = std::make_unique<tilt_lidar::EmulatedRig>(eo);
+    mem.write(a.section, "IP_DIR", "127.0.0.1");
+    mem.write(a.section, "PORT_DIR", emu->hokuyo_port());
+    mem.write(a.section, "COM_port_LIN", "");
+    mem.write(a.section, "DXL_port", emu->motor_device());
+    cfg = tilt_lidar::load_tilt_lidar_config(mem, a.section, a.config);
+    std::printf("emulating: UTM-30LX on 127.0.0.1:%d, Dynamixel PRO on %s\n", emu->hokuyo_port(),
+                emu->motor_device().c_str());
+  } else {
+    cfg = tilt_lidar::load_tilt_lidar_config(ini, a.section, a.config);
+  }
+  const std::string rig_out = a.rig_out.empty() ? (fs::path(a.out).replace_extension(".tilt_rig.yaml")).string() : a.rig_out;
+  core::write_tilt_rig(rig_out, cfg.rig);
+
+  tilt_lidar::RawlogWriterOptions wo;
+  wo.labels = {cfg.scan_label, cfg.encoder_label};
+  tilt_lidar::RawlogWriter writer(a.out, cfg.rig, wo);
+  tilt_lidar::Assembler assembler(cfg.rig);  // live tilt statistics only
+  tilt_lidar::TiltLidarSensor sensor;
+  sensor.set_config(cfg);
+  sensor.setSensorLabel(a.section);
+  sensor.initialize();
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+
+  const auto t_start = std::chrono::steady_clock::now();
+  auto t_report = t_start;
+  tilt_lidar::TiltLidarStats last{};
+  std::int64_t tilts = 0, last_tilts = 0;
+  bool outage_done = false, back_done = false;
+  std::printf("recording to %s (rig: %s); Ctrl-C stops\n", a.out.c_str(), rig_out.c_str());
+  while (!g_stop) {
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    if (a.duration_s > 0 && elapsed >= a.duration_s) break;
+    if (emu && a.kill_scanner_at_s >= 0 && !outage_done && elapsed >= a.kill_scanner_at_s) {
+      std::printf("[emulation] scanner switched off\n");
+      emu->hokuyo().stop();
+      outage_done = true;
+    }
+    if (emu && a.scanner_back_at_s >= 0 && outage_done && !back_done && elapsed >= a.scanner_back_at_s) {
+      std::printf("[emulation] scanner switched on again\n");
+      emu->hokuyo().start();
+      back_done = true;
+    }
+    sensor.doProcess();
+    for (const auto& [stamp, obj] : sensor.getObservations()) {
+      const auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj);
+      if (!obs) continue;
+      writer.write(*obs);
+      std::vector<tilt_lidar::TiltCloud> done;
+      if (const auto* s = dynamic_cast<const mrpt::obs::CObservation2DRangeScan*>(obs.get())) {
+        done = assembler.add_scan(tilt_lidar::from_observation(*s));
+      } else if (const auto* d = dynamic_cast<const mrpt::obs::CObservationRawDAQ*>(obs.get())) {
+        done = assembler.add_encoder_sample(tilt_lidar::from_observation(*d, cfg.rig.motor));
+      }
+      tilts += static_cast<std::int64_t>(done.size());
+    }
+    const auto now = std::chrono::steady_clock::now();
+    const double dt = std::chrono::duration<double>(now - t_report).count();
+    if (dt >= 1.0) {
+      const auto s = sensor.stats();
+      const auto& as = assembler.stats();
+      std::printf("t=%6.1fs  scans/s %5.1f  encoder/s %6.1f  tilts/s %4.2f  | dropped: scans %lld, encoder reads %lld, "
+                  "beams %lld | scanner %s, motor %s\n",
+                  std::chrono::duration<double>(now - t_start).count(), (s.scans - last.scans) / dt,
+                  (s.encoder_samples - last.encoder_samples) / dt, (tilts - last_tilts) / dt,
+                  static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_failures),
+                  static_cast<long long>(as.dropped_gap + as.dropped_no_encoder), s.scanner_ok ? "ok" : "LOST",
+                  s.motor_ok ? "ok" : "LOST");
+      std::fflush(stdout);
+      last = s;
+      last_tilts = tilts;
+      t_report = now;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  sensor.stop();
+  for (const auto& [stamp, obj] : sensor.getObservations()) {
+    if (const auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj)) writer.write(*obs);
+  }
+  writer.close();
+  const auto s = sensor.stats();
+  std::printf("recorded %lld records: %lld scans (%lld missed), %lld encoder samples (%lld failed reads), "
+              "scanner lost %lld times -> %s\n",
+              static_cast<long long>(writer.records()), static_cast<long long>(s.scans),
+              static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_samples),
+              static_cast<long long>(s.encoder_failures), static_cast<long long>(s.scanner_losses), a.out.c_str());
+  return s.scans > 0 && s.encoder_samples > 0 ? 0 : 1;
+}
+
+struct AssembleArgs {
+  std::string rawlog, rig, out;
+  tilt_lidar::AssemblerOptions options;
+  bool keep_partial = false;
+};
+
+int assemble(const AssembleArgs& a) {
+  const core::TiltRig rig = core::read_tilt_rig(a.rig);
+  tilt_lidar::Assembler assembler(rig, a.options);
+  const fs::path clouds = fs::path(a.out) / "clouds";
+  fs::create_directories(clouds);
+  std::vector<core::TimedFile> index;
+  std::int64_t skipped = 0;
+  const auto r = tilt_lidar::replay_rawlog(a.rawlog, assembler, [&](tilt_lidar::TiltCloud&& t) {
+    if (t.partial && !a.keep_partial) {
+      ++skipped;
+      return;
+    }
+    char name[32];
+    std::snprintf(name, sizeof name, "%06zu.pcd", index.size());
+    const fs::path file = clouds / name;
+    cloud::save_pcd(file.string(), *t.cloud);
+    index.push_back({t.start_time_s, file.string()});
+    std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1, name, t.cloud->size(),
+                t.stats.scans, t.start_time_s, t.end_time_s, t.direction > 0 ? "up" : "down");
+  });
+  core::write_time_index((clouds / "index.csv").string(), index);
+  const auto& s = assembler.stats();
+  std::printf("%lld scans, %lld encoder samples -> %zu tilts in %s (%lld partial skipped)\n"
+              "points %lld, invalid %lld, dropped in encoder gaps %lld, without encoder %lld, "
+              "duplicates %lld/%lld, late %lld/%lld\n",
+              static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples), index.size(),
+              (clouds / "index.csv").c_str(), static_cast<long long>(skipped), static_cast<long long>(s.points),
+              static_cast<long long>(s.invalid), static_cast<long long>(s.dropped_gap),
+              static_cast<long long>(s.dropped_no_encoder), static_cast<long long>(s.scans_duplicate),
+              static_cast<long long>(s.encoder_duplicate), static_cast<long long>(s.scans_late),
+              static_cast<long long>(s.encoder_late));
+  if (r.truncated) {
+    std::fprintf(stderr, "error: %s\n(the tilts before the damaged record were written)\n", r.error.c_str());
+    return 2;
+  }
+  return index.empty() ? 1 : 0;
+}
+
+int info(const std::string& rawlog) {
+  const auto s = tilt_lidar::summarize_rawlog(rawlog);
+  std::printf("%s: %lld observations\n", rawlog.c_str(), static_cast<long long>(s.observations));
+  std::printf("%-16s %-40s %8s %18s %18s %9s\n", "label", "class", "count", "first [s]", "last [s]", "rate [Hz]");
+  for (const auto& [label, st] : s.streams) {
+    const double span = st.last_time_s - st.first_time_s;
+    std::printf("%-16s %-40s %8lld %18.6f %18.6f %9.2f\n", label.empty() ? "(none)" : label.c_str(),
+                st.class_name.c_str(), static_cast<long long>(st.count), st.first_time_s, st.last_time_s,
+                span > 0 ? (st.count - 1) / span : 0.0);
+  }
+  if (s.truncated) {
+    std::fprintf(stderr, "error: %s\n", s.error.c_str());
+    return 2;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "rgbdt_tilt_lidar: tilting-LIDAR recorder and assembler.\n"
+      "  record    drive the scanner (MRPT CHokuyoURG) and the Dynamixel tilt motor, write the raw\n"
+      "            stream (HOKUYO scans + TILT_ENCODER samples) to an MRPT rawlog\n"
+      "  assemble  turn a raw rawlog into one PCD per tilt plus clouds/index.csv\n"
+      "  info      list the streams of a rawlog (any MRPT rawlog)"};
+  app.require_subcommand(1);
+  bool verbose = false;
+  app.add_flag("-v,--verbose", verbose, "show library log messages (debug level)");
+
+  RecordArgs ra;
+  auto* rec = app.add_subcommand("record", "record the raw stream to an MRPT rawlog");
+  rec->add_option("--config", ra.config, "rawlog-grabber style INI (keys: see tilt_lidar_sensor.hpp)")->required();
+  rec->add_option("--section", ra.section, "INI section of the tilting LIDAR")->capture_default_str();
+  rec->add_option("--out", ra.out, "output rawlog")->required();
+  rec->add_option("--rig-out", ra.rig_out, "tilt_rig.yaml to write (default: <out>.tilt_rig.yaml)");
+  rec->add_option("--duration", ra.duration_s, "stop after this many seconds (default: until Ctrl-C)");
+  rec->add_flag("--emulate", ra.emulate, "use an emulated UTM-30LX and Dynamixel PRO (no hardware)");
+  rec->add_option("--emulate-outage", ra.kill_scanner_at_s, "with --emulate: switch the scanner off at this second");
+  rec->add_option("--emulate-return", ra.scanner_back_at_s, "with --emulate: switch it on again at this second");
+
+  AssembleArgs aa;
+  auto* asmb = app.add_subcommand("assemble", "assemble a raw rawlog into one PCD per tilt");
+  asmb->add_option("rawlog", aa.rawlog, "input rawlog")->required()->check(CLI::ExistingFile);
+  asmb->add_option("--rig", aa.rig, "tilt_rig.yaml (frames, beam timing, encoder)")->required()->check(CLI::ExistingFile);
+  asmb->add_option("--out", aa.out, "output folder (clouds/NNNNNN.pcd, clouds/index.csv)")->required();
+  asmb->add_option("--max-gap", aa.options.max_encoder_gap_s, "longest encoder gap to interpolate across [s]")->capture_default_str();
+  asmb->add_option("--encoder-offset", aa.options.encoder_time_offset_s, "encoder clock -> scanner clock offset [s]")->capture_default_str();
+  asmb->add_option("--hysteresis-deg", aa.options.reversal_hysteresis_rad, "reversal detection hysteresis [deg]")
+      ->transform([](std::string s) { return std::to_string(std::stod(s) * M_PI / 180.0); });
+  asmb->add_flag("--keep-partial", aa.keep_partial, "also write the incomplete first and last tilts");
+
+  std::string info_path;
+  auto* inf = app.add_subcommand("info", "summarise a rawlog");
+  inf->add_option("rawlog", info_path, "input rawlog")->required()->check(CLI::ExistingFile);
+
+  CLI11_PARSE(app, argc, argv);
+  core::set_log_sink(core::stderr_log_sink);
+  core::set_log_level(verbose ? core::LogLevel::kDebug : core::LogLevel::kWarning);
+  try {
+    if (*rec) return record(ra);
+    if (*asmb) {
+      if (const auto why = aa.options.validate(); !why.empty()) throw std::invalid_argument(why);
+      return assemble(aa);
+    }
+    if (*inf) return info(info_path);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+  return 1;
+}

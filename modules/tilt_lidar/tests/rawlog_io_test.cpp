@@ -1,0 +1,208 @@
+#include "rgbdt/tilt_lidar/rawlog_io.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <mrpt/core/Clock.h>
+
+#include "rgbdt/core/error.hpp"
+#include "stream_fixture.hpp"
+#include "test_util.hpp"
+
+namespace rgbdt::tilt_lidar {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Writes the stream in arrival order (as a recorder would).
+void write_stream(RawlogWriter& w, const test::Stream& s, double scan_len) {
+  std::size_t e = 0;
+  for (const auto& scan : s.scans) {
+    while (e < s.encoder.size() && s.encoder[e].time_s <= scan.time_s + scan_len) {
+      w.write(s.encoder[e], s.counts[e]);
+      ++e;
+    }
+    w.write(scan);
+  }
+  for (; e < s.encoder.size(); ++e) w.write(s.encoder[e], s.counts[e]);
+}
+
+std::vector<TiltCloud> replay(const std::string& path, const core::TiltRig& rig, ReplayResult* result = nullptr) {
+  Assembler a(rig);
+  std::vector<TiltCloud> out;
+  const ReplayResult r = replay_rawlog(path, a, [&out](TiltCloud&& t) { out.push_back(std::move(t)); });
+  if (result) *result = r;
+  return out;
+}
+
+TEST(RawlogIo, ScanAndEncoderObservationsRoundTrip) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 0.1);
+  const auto obs = to_observation(s.scans[1], rig, "HOKUYO");
+  EXPECT_EQ(obs->sensorLabel, "HOKUYO");
+  EXPECT_EQ(obs->getScanSize(), 1081u);
+  EXPECT_NEAR(obs->aperture, 270 * M_PI / 180, 1e-6);
+  const Scan back = from_observation(*obs);
+  EXPECT_NEAR(back.time_s, s.scans[1].time_s, 1e-6);  // Clock has 100 ns ticks
+  EXPECT_EQ(back.ranges_m, s.scans[1].ranges_m);
+  EXPECT_EQ(back.valid, s.scans[1].valid);
+  EXPECT_EQ(back.intensity, s.scans[1].intensity);  // integral intensities survive int32
+
+  const auto daq = to_observation(s.encoder[3], s.counts[3], "TILT_ENCODER");
+  const EncoderSample e = from_observation(*daq, rig.motor);
+  EXPECT_DOUBLE_EQ(e.angle_rad, rig.motor.angle_from_count(s.counts[3]));
+  daq->CNTRIN_double.clear();  // angle only: AIN_double[0] is used
+  EXPECT_DOUBLE_EQ(from_observation(*daq, rig.motor).angle_rad, s.encoder[3].angle_rad);
+  daq->AIN_double.clear();
+  EXPECT_THROW(from_observation(*daq, rig.motor), core::Error);
+}
+
+TEST(RawlogIo, ReplayedRawlogAssemblesLikeTheLiveStream) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 2.0);
+  const fs::path dir = test::temp_dir("rawlog");
+  const std::string path = (dir / "session.rawlog").string();
+  {
+    RawlogWriter w(path, rig);
+    write_stream(w, s, rig.scanner.scan_period_s);
+    EXPECT_EQ(w.records(), static_cast<std::int64_t>(s.scans.size() + s.encoder.size()));
+  }
+  Assembler live(rig);
+  const auto expected = test::feed(live, s);
+  ReplayResult r;
+  const auto got = replay(path, rig, &r);
+  EXPECT_FALSE(r.truncated) << r.error;
+  EXPECT_EQ(r.scans, static_cast<std::int64_t>(s.scans.size()));
+  EXPECT_EQ(r.encoder_samples, static_cast<std::int64_t>(s.encoder.size()));
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    ASSERT_EQ(got[k].cloud->size(), expected[k].cloud->size());
+    // Timestamps pass through mrpt::Clock (100 ns ticks): per-beam phi moves < 1e-7 rad.
+    for (std::size_t i = 0; i < got[k].cloud->size(); i += 7) {
+      const auto& a = got[k].cloud->points[i];
+      const auto& b = expected[k].cloud->points[i];
+      EXPECT_NEAR(a.x, b.x, 1e-5);
+      EXPECT_NEAR(a.z, b.z, 1e-5);
+    }
+  }
+  const RawlogSummary sum = summarize_rawlog(path);
+  EXPECT_EQ(sum.streams.at("HOKUYO").count, static_cast<std::int64_t>(s.scans.size()));
+  EXPECT_EQ(sum.streams.at("HOKUYO").class_name, "mrpt::obs::CObservation2DRangeScan");
+  EXPECT_EQ(sum.streams.at("TILT_ENCODER").count, static_cast<std::int64_t>(s.encoder.size()));
+}
+
+TEST(RawlogIo, MrptRawlogEditReadsOurFile) {
+  if (!fs::exists("/usr/bin/rawlog-edit")) GTEST_SKIP() << "/usr/bin/rawlog-edit (Debian mrpt-apps) is not installed";
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 0.5);
+  const fs::path dir = test::temp_dir("rawlog");
+  const std::string path = (dir / "session.rawlog").string();
+  {
+    RawlogWriter w(path, rig);
+    write_stream(w, s, rig.scanner.scan_period_s);
+  }
+  const std::string cmd = "rawlog-edit --info -i '" + path + "' 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::string text;
+  char buf[512];
+  while (fgets(buf, sizeof buf, p)) text += buf;
+  EXPECT_EQ(pclose(p), 0) << text;
+  EXPECT_NE(text.find("Observations format               : Yes"), std::string::npos) << text;
+  const std::string objects = "Overall number of objects         : " + std::to_string(s.scans.size() + s.encoder.size());
+  EXPECT_NE(text.find(objects), std::string::npos) << text;
+  EXPECT_NE(text.find("HOKUYO"), std::string::npos) << text;
+  EXPECT_NE(text.find("TILT_ENCODER"), std::string::npos) << text;
+}
+
+TEST(RawlogIo, TruncatedRawlogKeepsTheRecordsBeforeTheCut) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 2.0);
+  const fs::path dir = test::temp_dir("rawlog");
+  const std::string path = (dir / "session.rawlog").string();
+  {
+    RawlogWriter w(path, rig);
+    write_stream(w, s, rig.scanner.scan_period_s);
+  }
+  const auto size = fs::file_size(path);
+  fs::resize_file(path, size * 6 / 10 + 3);  // cut in the middle of some record
+  ReplayResult r;
+  const auto tilts = replay(path, rig, &r);
+  EXPECT_TRUE(r.truncated);
+  EXPECT_NE(r.error.find(path), std::string::npos) << r.error;
+  EXPECT_NE(r.error.find("truncated"), std::string::npos) << r.error;
+  // ~60% of the scans survive: tilts up to ~1.2 s (reversals 0.3, 0.9 s).
+  EXPECT_GT(r.scans, static_cast<std::int64_t>(s.scans.size()) / 2);
+  EXPECT_LT(r.scans, static_cast<std::int64_t>(s.scans.size()) * 7 / 10);
+  EXPECT_GE(tilts.size(), 2u);
+
+  RawlogReader reader(path);
+  std::int64_t n = 0;
+  while (reader.next()) ++n;
+  EXPECT_TRUE(reader.truncated());
+  EXPECT_EQ(n, r.scans + r.encoder_samples);
+}
+
+TEST(RawlogIo, MissingFileNamesThePath) {
+  try {
+    RawlogReader reader("/nonexistent/x.rawlog");
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/x.rawlog"), std::string::npos);
+  }
+}
+
+// Real MRPT rawlogs (shared/data/mrpt, BSD-3): counts and time spans as rawlog-edit --info
+// reports them.
+TEST(RawlogIo, ReadsRealMrptRawlogs) {
+  const fs::path data = fs::path(RGBDT_SHARED_DATA_DIR) / "mrpt" / "datasets";
+  const fs::path sena = data / "2006-01ENE-21-SENA_Telecom Faculty_one_loop_only.rawlog";
+  const fs::path demo = data / "localization_demo.rawlog";
+  const fs::path rot = data / "rot_scan_2d.rawlog";
+  for (const auto& p : {sena, demo, rot}) ASSERT_TRUE(fs::exists(p)) << "missing test data " << p;
+
+  // Actions/sensory-frame format, 449 objects. rawlog-edit --list-timestamps lists 224
+  // scans from 1137834225.973760 on, leaving out the first frame (...225.713386); every
+  // sensory frame's observations are delivered here, 225 in all.
+  const RawlogSummary s = summarize_rawlog(sena.string());
+  EXPECT_FALSE(s.truncated) << s.error;
+  EXPECT_EQ(s.observations, 225);
+  ASSERT_EQ(s.streams.size(), 1u);
+  const auto& st = s.streams.begin()->second;
+  EXPECT_EQ(st.class_name, "mrpt::obs::CObservation2DRangeScan");
+  EXPECT_NEAR(st.first_time_s, 1137834225.713386, 1e-5);
+  EXPECT_NEAR(st.last_time_s, 1137834284.788331, 1e-5);
+
+  EXPECT_EQ(summarize_rawlog(demo.string()).observations, 37);
+  // Observations format holding one CObservationRotatingScan (a class of mrpt-maps).
+  RawlogReader rreader(rot.string());
+  auto robs = rreader.next();
+  ASSERT_TRUE(robs) << rreader.error();
+  EXPECT_STREQ(robs->GetRuntimeClass()->className, "mrpt::obs::CObservationRotatingScan");
+  EXPECT_NEAR(mrpt::Clock::toDouble(robs->timestamp), 1137772793.094853, 1e-5);
+  EXPECT_FALSE(rreader.next());
+  EXPECT_FALSE(rreader.truncated()) << rreader.error();
+
+  // A 2D scan from the localization demo: convertible to our Scan, sane ranges.
+  RawlogReader reader(demo.string());
+  auto obs = reader.next();
+  ASSERT_TRUE(obs);
+  const auto* scan = dynamic_cast<const mrpt::obs::CObservation2DRangeScan*>(obs.get());
+  ASSERT_NE(scan, nullptr);
+  const Scan sc = from_observation(*scan);
+  EXPECT_GT(sc.ranges_m.size(), 100u);
+  int valid = 0;
+  for (std::size_t i = 0; i < sc.ranges_m.size(); ++i) {
+    if (!sc.valid[i]) continue;
+    ++valid;
+    EXPECT_GT(sc.ranges_m[i], 0.0f);
+    EXPECT_LT(sc.ranges_m[i], scan->maxRange + 1e-3f);
+  }
+  EXPECT_GT(valid, 50);
+}
+
+}  // namespace
+}  // namespace rgbdt::tilt_lidar

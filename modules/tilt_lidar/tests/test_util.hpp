@@ -1,0 +1,19 @@
+#pragma once
+// A fresh temporary folder per test (as in core's tests).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+namespace rgbdt::test {
+
+inline std::filesystem::path temp_dir(const std::string& name) {
+  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rgbdt_tests" /
+                                    (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+}  // namespace rgbdt::test
