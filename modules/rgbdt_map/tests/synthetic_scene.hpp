@@ -103,6 +103,39 @@ inline Scene box_wall_scene() {
   return scene;
 }
 
+/// A yard: ground, two side walls, a far wall and boxes of several sizes, so that all six
+/// degrees of freedom of a registration are constrained.
+inline Scene structured_scene() {
+  Scene scene;
+  auto plane = [](Eigen::Vector3d n, double offset, std::array<double, 3> rgb, double kelvin) {
+    Surface s;
+    s.normal = n;
+    s.offset = offset;
+    s.base_rgb = rgb;
+    s.temperature_k = kelvin;
+    return s;
+  };
+  auto box = [](Eigen::Vector3d lo, Eigen::Vector3d hi, std::array<double, 3> rgb, double kelvin) {
+    Surface s;
+    s.kind = Surface::kBox;
+    s.box_min = lo;
+    s.box_max = hi;
+    s.base_rgb = rgb;
+    s.temperature_k = kelvin;
+    return s;
+  };
+  scene.surfaces = {plane({0, 0, 1}, -1.0, {90, 90, 90}, 295.0),  plane({0, 1, 0}, 5.0, {180, 60, 50}, 290.0),
+                    plane({0, 1, 0}, -6.0, {60, 150, 60}, 292.0), plane({1, 0, 0}, 40.0, {200, 200, 80}, 289.0),
+                    box({4, 1.5, -1}, {5, 2.5, 0.8}, {30, 60, 200}, 310.0),
+                    box({7, -3, -1}, {8.5, -2, 0.3}, {200, 120, 30}, 305.0),
+                    box({11, 0.5, -1}, {11.6, 1.5, 1.8}, {120, 30, 160}, 300.0),
+                    box({15, -1.5, -1}, {17, -0.8, 0.5}, {30, 160, 160}, 298.0),
+                    box({21, 2, -1}, {22, 4, 2.5}, {160, 160, 30}, 301.0),
+                    box({26, -4, -1}, {27, -2.5, 1.0}, {100, 100, 200}, 299.0),
+                    box({2.5, -4.5, -1}, {3.5, -3.5, 2.0}, {200, 200, 200}, 296.0)};
+  return scene;
+}
+
 struct TiltScanOptions {
   int scans = 24;                 // scan lines per tilt
   double tilt_min_rad = -0.45;    // tilt < 0 pitches up
