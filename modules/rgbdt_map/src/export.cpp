@@ -10,6 +10,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <unordered_set>
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/rgbdt_map/thermal_octree.hpp"
@@ -162,6 +163,7 @@ std::string OccupancyOptions::validate() const {
   std::ostringstream os;
   if (!(resolution_m > 0.0)) os << "resolution_m = " << resolution_m << ", expected > 0; ";
   if (!(prob_hit > 0.5 && prob_hit < 1.0)) os << "prob_hit = " << prob_hit << ", expected in (0.5, 1); ";
+  if (!(free_space_voxel_m >= 0.0)) os << "free_space_voxel_m = " << free_space_voxel_m << ", expected >= 0; ";
   if (!(prob_miss > 0.0 && prob_miss < 0.5)) os << "prob_miss = " << prob_miss << ", expected in (0, 0.5); ";
   return os.str();
 }
@@ -175,18 +177,49 @@ OccupancyMapBuilder::OccupancyMapBuilder(const OccupancyOptions& options) : opti
 
 void OccupancyMapBuilder::insert_scan(const std::vector<Eigen::Vector3f>& points_world,
                                       const Eigen::Vector3d& origin) {
-  octomap::Pointcloud scan;
-  scan.reserve(points_world.size());
+  const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
+                                static_cast<float>(origin.z()));
+  const double max_free = options_.max_free_range_m;
+  const bool coarse = options_.free_space_voxel_m > options_.resolution_m;
+  const float inv_coarse = coarse ? static_cast<float>(1.0 / options_.free_space_voxel_m) : 0.0f;
+  std::unordered_set<std::uint64_t> carved;
+  octomap::Pointcloud rays;
+  rays.reserve(points_world.size());
+  std::vector<octomap::point3d> occupied_only;
   for (const auto& p : points_world) {
-    if (p.allFinite()) scan.push_back(p.x(), p.y(), p.z());
+    if (!p.allFinite()) continue;
+    const octomap::point3d q(p.x(), p.y(), p.z());
+    // Points beyond the carving range carve up to it (octomap truncates their rays) and are
+    // marked occupied separately.
+    const bool far = max_free > 0.0 && (q - sensor).norm() > max_free;
+    bool carve = true;
+    if (coarse) {
+      std::uint64_t key = 0;
+      for (int a = 0; a < 3; ++a) {
+        key = key * 2097143u + static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(p[a] * inv_coarse)) + (1 << 20));
+      }
+      carve = carved.insert(key).second;
+    }
+    if (carve) rays.push_back(q);
+    if (far || !carve) occupied_only.push_back(q);
   }
-  tree_->insertPointCloud(scan, octomap::point3d(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
-                                                 static_cast<float>(origin.z())),
-                          options_.max_range_m, /*lazy_eval=*/false, /*discretize=*/true);
+  // Lazy: inner nodes are brought up to date once, before the tree is used.
+  tree_->insertPointCloud(rays, sensor, max_free, /*lazy_eval=*/true, /*discretize=*/true);
+  for (const auto& q : occupied_only) tree_->updateNode(q, true, /*lazy_eval=*/true);
+  inner_nodes_stale_ = true;
+}
+
+octomap::OcTree& OccupancyMapBuilder::tree() {
+  if (inner_nodes_stale_) {
+    tree_->updateInnerOccupancy();
+    inner_nodes_stale_ = false;
+  }
+  return *tree_;
 }
 
 void OccupancyMapBuilder::write_bt(const std::string& path) {
   ensure_parent(path);
+  tree();
   if (!tree_->writeBinary(path)) throw core::Error(path, "cannot write OctoMap binary tree");
 }
 

@@ -177,6 +177,23 @@ TEST(Export, OccupancyTreeFromRaysKnowsFreeSpaceAndReadsBack) {
   EXPECT_EQ(tree.search(5.0, 0.1, 0.1), nullptr);
 }
 
+TEST(Export, PointsBeyondTheFreeSpaceRangeAreOccupiedWithoutCarving) {
+  OccupancyOptions options;
+  options.max_free_range_m = 3.0;
+  OccupancyMapBuilder builder(options);
+  std::vector<Eigen::Vector3f> wall;
+  for (float y = -0.5f; y <= 0.5f; y += 0.02f) wall.emplace_back(4.0f, y, 0.0f);
+  builder.insert_scan(wall, Eigen::Vector3d::Zero());
+  octomap::OcTree& tree = builder.tree();
+  const auto* on_wall = tree.search(4.0, 0.01, 0.01);
+  ASSERT_NE(on_wall, nullptr);
+  EXPECT_TRUE(tree.isNodeOccupied(on_wall));
+  const auto* near = tree.search(2.0, 0.01, 0.01);
+  ASSERT_NE(near, nullptr);
+  EXPECT_FALSE(tree.isNodeOccupied(near));
+  EXPECT_EQ(tree.search(3.5, 0.01, 0.01), nullptr);  // beyond the carving range: unknown
+}
+
 TEST(Export, ColorOcTreeWriteThenReadRoundTrips) {
   const auto dir = temp_dir();
   const auto points = sample_points();

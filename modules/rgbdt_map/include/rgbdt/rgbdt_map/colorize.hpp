@@ -67,9 +67,11 @@ struct ColorizeOptions {
   /// are drawn flat at the near depth, so points just behind an edge stay uncoloured;
   /// so do triangles the camera sees from their other side (parallax folds).
   /// The ground seen at a grazing angle h / r stays a surface while that angle exceeds
-  /// edge_angle_deg: with 3 deg, up to 19 m for a sensor 1 m above the ground.
+  /// edge_angle_deg: with 3 deg, up to 19 m for a sensor 1 m above the ground. The ratio
+  /// rule only catches what the angle misses (wide gaps between scan lines); a low ratio
+  /// turns the far ground into edges too (0.5 cost 3 % of the visible points of a yard).
   double edge_angle_deg = 3.0;     ///< [deg]
-  double discontinuity_ratio = 0.5;  ///< [-]
+  double discontinuity_ratio = 2.0;  ///< [-]
   /// Triangles wider or taller than this in the image are dropped (wrap-arounds, objects
   /// touching the sensor). [px]
   double max_triangle_extent_px = 400.0;
