@@ -273,7 +273,11 @@ int main(int argc, char** argv) {
     stage_s["render"] = seconds_since(t0);
 
     std::optional<double> rmse;
-    if (const auto truth = ground_truth_trajectory(session.directory)) rmse = trajectory_rmse_m(trajectory, *truth);
+    if (auto truth = ground_truth_trajectory(session.directory)) {
+      rmse = trajectory_rmse_m(trajectory, *truth);
+    } else if (!session.trajectory.empty()) {
+      rmse = trajectory_rmse_m(trajectory, read_trajectory_csv(session.trajectory));
+    }
 
     // Summary.
     std::ostringstream json;
