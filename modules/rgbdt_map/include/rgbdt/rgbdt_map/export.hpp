@@ -1,0 +1,80 @@
+#pragma once
+/// \file
+/// Map files for viewers and planners:
+///   - PLY, binary little endian, vertex fields x y z (float) red green blue (uchar)
+///     temperature (float, kelvin, NaN where unknown): opens in CloudCompare and MeshLab,
+///     with temperature as a scalar field;
+///   - PCD, binary, fields x y z rgb temperature (PCL, CloudCompare);
+///   - OctoMap: `map.bt` occupancy built by ray insertion from the sensor origin of every
+///     scan (free space is known), `map_rgb.ot` (octomap::ColorOcTree) and
+///     `map_thermal.ot` (ThermalOcTree, see thermal_octree.hpp).
+/// Every writer throws rgbdt::core::Error naming the file when it cannot write; readers
+/// name the file and what was expected.
+#include <octomap/OcTree.h>
+
+#include <Eigen/Core>
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "rgbdt/rgbdt_map/voxel_map.hpp"
+
+namespace rgbdt::rgbdt_map {
+
+/// Writes map points; points without RGB are written with `uncolored_rgb` (PLY has no
+/// "missing" colour; their temperature is still written). Use VoxelMap::points and filter
+/// on has_rgb to leave them out instead.
+void write_ply(const std::string& path, const std::vector<MapPoint>& points,
+               std::array<std::uint8_t, 3> uncolored_rgb = {128, 128, 128});
+/// Reads a binary little endian PLY with float x y z, uchar red green blue and float
+/// temperature vertices (what write_ply writes). has_rgb is true for every point.
+std::vector<MapPoint> read_ply(const std::string& path);
+
+/// PCD (binary) with fields x y z rgb temperature; same conventions as write_ply.
+void write_pcd(const std::string& path, const std::vector<MapPoint>& points,
+               std::array<std::uint8_t, 3> uncolored_rgb = {128, 128, 128});
+std::vector<MapPoint> read_map_pcd(const std::string& path);
+
+struct OccupancyOptions {
+  double resolution_m = 0.05;  ///< octree leaf size [m]
+  /// Free space is carved along each ray up to this range; farther points are still
+  /// inserted as occupied, without carving. Ray casting costs one step per cell crossed,
+  /// so a 40 m ray at 5 cm costs 800: 15 m keeps a 1.2 M-point map within seconds and
+  /// covers where a cart plans. < 0: carve whole rays. [m]
+  double max_free_range_m = 15.0;
+  /// One ray carves free space per cell of this size holding end points (all end points
+  /// are still marked occupied at resolution_m): near the sensor, where points are dense,
+  /// this removes most rays; free space is then exact except within this distance of
+  /// surfaces. <= resolution_m: one ray per end cell. [m]
+  double free_space_voxel_m = 0.25;
+  double prob_hit = 0.7;       ///< octomap sensor model (its defaults)
+  double prob_miss = 0.4;
+  std::string validate() const;
+};
+
+/// Occupancy octree built scan by scan: every point casts a ray from the sensor origin
+/// that marks the cells it crosses free and its end cell occupied (octomap's
+/// insertPointCloud, with points discretised to one ray per end cell, which is octomap's
+/// fast path and changes nothing at the map's resolution). Inner nodes are updated once,
+/// when the tree is written or tree() is asked for.
+class OccupancyMapBuilder {
+ public:
+  explicit OccupancyMapBuilder(const OccupancyOptions& options = {});
+  void insert_scan(const std::vector<Eigen::Vector3f>& points_world, const Eigen::Vector3d& sensor_origin_world);
+  octomap::OcTree& tree();
+  /// Writes the maximum-likelihood binary tree (.bt).
+  void write_bt(const std::string& path);
+
+ private:
+  OccupancyOptions options_;
+  std::unique_ptr<octomap::OcTree> tree_;
+  bool inner_nodes_stale_ = false;
+};
+
+/// ColorOcTree of the map's coloured voxels (occupied, mean colour) as a full .ot file.
+void write_color_octree(const std::string& path, const std::vector<MapPoint>& points, double resolution_m);
+/// ThermalOcTree of the voxels with a temperature, as a full .ot file.
+void write_thermal_octree(const std::string& path, const std::vector<MapPoint>& points, double resolution_m);
+
+}  // namespace rgbdt::rgbdt_map

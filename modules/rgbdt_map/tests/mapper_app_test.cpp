@@ -1,0 +1,202 @@
+// End-to-end test of the rgbdt_mapper app on a small simulated session written here with
+// core's writers: a cart driving through the structured yard of synthetic_scene.hpp.
+#include <gtest/gtest.h>
+
+#include <octomap/AbstractOcTree.h>
+#include <octomap/ColorOcTree.h>
+#include <octomap/OcTree.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+
+#include "rgbdt/cloud/pcd_io.hpp"
+#include "rgbdt/core/camera_info.hpp"
+#include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/session.hpp"
+#include "rgbdt/core/time_index.hpp"
+#include "rgbdt/core/transform.hpp"
+#include "rgbdt/rgbdt_map/export.hpp"
+#include "rgbdt/rgbdt_map/thermal_octree.hpp"
+#include "rgbdt/rgbdt_map/trajectory.hpp"
+#include "synthetic_scene.hpp"
+
+using namespace rgbdt;
+using namespace rgbdt::rgbdt_map;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kKelvinPerCount = 0.04;
+constexpr double kStartS = 50.0;
+
+Eigen::Isometry3d truth_at(double t_from_start) {
+  return core::make_transform(core::rotation_from_rpy(0.0, 0.0, 0.08 * t_from_start),
+                              Eigen::Vector3d(1.0 * t_from_start, 0.1 * t_from_start, 0.0));
+}
+
+/// Distance from p to the nearest surface of the scene, and which one.
+std::pair<double, int> nearest_surface(const test::Scene& scene, const Eigen::Vector3d& p) {
+  std::pair<double, int> best{1e9, -1};
+  for (std::size_t s = 0; s < scene.surfaces.size(); ++s) {
+    const test::Surface& f = scene.surfaces[s];
+    double d;
+    if (f.kind == test::Surface::kPlane) {
+      d = std::abs(f.normal.dot(p) - f.offset);
+    } else {
+      const Eigen::Vector3d outside = (f.box_min - p).cwiseMax(p - f.box_max).cwiseMax(0.0);
+      const double inside = std::min((p - f.box_min).minCoeff(), (f.box_max - p).minCoeff());
+      d = outside.norm() > 0 ? outside.norm() : inside;
+    }
+    if (d < best.first) best = {d, static_cast<int>(s)};
+  }
+  return best;
+}
+
+struct Camera {
+  std::string name;
+  core::CameraIntrinsics intrinsics;
+  Eigen::Isometry3d T_lidar_camera;
+  double period_s;
+};
+
+void write_session(const fs::path& dir, int tilts) {
+  const test::Scene scene = test::structured_scene();
+  fs::create_directories(dir / "clouds");
+  fs::create_directories(dir / "rgb");
+  fs::create_directories(dir / "thermal");
+  fs::create_directories(dir / "true_calib");
+  fs::create_directories(dir / "ground_truth");
+  const std::vector<Camera> cameras = {
+      {"rgb", test::test_intrinsics(320, 240, 220.0), core::make_transform(test::R_lidar_camera_forward(), {0.05, 0.2, 0.1}), 0.2},
+      {"thermal", test::test_intrinsics(160, 128, 105.0, -0.1),
+       core::make_transform(test::R_lidar_camera_forward(), {0.05, -0.2, 0.1}), 0.04}};
+  test::TiltScanOptions scan;
+  scan.range_noise_m = 0.01;
+  std::vector<core::TimedFile> cloud_index;
+  for (int k = 0; k < tilts; ++k) {
+    const double t0 = 0.6 * k;
+    scan.seed = 100 + k;
+    const cloud::Cloud c = test::scan_tilt(scene, scan, [&](double t) { return truth_at(t0 + t); });
+    const fs::path file = dir / "clouds" / (std::to_string(k) + ".pcd");
+    cloud::save_pcd(file.string(), c);
+    cloud_index.push_back({kStartS + t0, file.string()});
+  }
+  core::write_time_index((dir / "clouds/index.csv").string(), cloud_index);
+
+  core::MappingSession session;
+  session.lidar.clouds = (dir / "clouds/index.csv").string();
+  const double duration_s = 0.6 * tilts;
+  for (const Camera& cam : cameras) {
+    std::vector<core::TimedFile> frames;
+    for (int i = 0; i * cam.period_s <= duration_s; ++i) {
+      const double t = i * cam.period_s;
+      const test::RenderedView view = test::render(scene, core::PinholeCamera(cam.intrinsics),
+                                                   truth_at(t) * cam.T_lidar_camera, kKelvinPerCount);
+      const fs::path file = dir / cam.name / (std::to_string(i) + ".png");
+      cv::imwrite(file.string(), cam.name == "rgb" ? view.bgr : view.counts);
+      frames.push_back({kStartS + t, file.string()});
+    }
+    core::write_time_index((dir / cam.name / "index.csv").string(), frames);
+    core::write_camera_info((dir / (cam.name + ".yaml")).string(), cam.intrinsics);
+    core::Extrinsics e;
+    e.parent_frame = cam.name;
+    e.T_parent_child = cam.T_lidar_camera.inverse();
+    core::write_extrinsics((dir / "true_calib" / ("extrinsics_" + cam.name + ".yaml")).string(), e);
+    core::CameraEntry entry;
+    entry.intrinsics = (dir / (cam.name + ".yaml")).string();
+    entry.frames = (dir / cam.name / "index.csv").string();
+    if (cam.name == "thermal") {
+      entry.radiometry = core::RadiometrySpec{"linear", {{"kelvin_per_count", kKelvinPerCount}, {"offset_k", 0.0}}};
+    }
+    session.cameras[cam.name] = entry;
+  }
+  core::write_mapping_session((dir / "session.yaml").string(), session);
+
+  Trajectory truth;
+  for (double t = -0.1; t <= duration_s + 0.2; t += 0.05) truth.push_back({kStartS + t, truth_at(t)});
+  write_trajectory_csv((dir / "ground_truth/trajectory.csv").string(), truth);
+  std::ofstream(dir / "ground_truth.yaml") << "trajectory: ground_truth/trajectory.csv\n";
+}
+
+double json_value(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\":");
+  if (at == std::string::npos) return NAN;
+  return std::atof(json.c_str() + at + key.size() + 3);
+}
+
+}  // namespace
+
+TEST(MapperApp, MapsASimulatedSessionIntoEveryOutputFile) {
+  const char* bin = std::getenv("RGBDT_BIN_DIR");
+  ASSERT_NE(bin, nullptr) << "RGBDT_BIN_DIR is set by ctest";
+  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "MapperApp";
+  fs::remove_all(dir);
+  write_session(dir / "session", 6);
+  const std::string command = std::string(bin) + "/rgbdt_mapper " + (dir / "session").string() + " --calib " +
+                              (dir / "session/true_calib").string() + " --out " + (dir / "out").string() +
+                              " > " + (dir / "log.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << "see " << (dir / "log.txt");
+
+  std::ifstream in(dir / "out/summary.json");
+  const std::string json((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_EQ(json_value(json, "clouds"), 6);
+  // 6 tilts in ~3.6 m: the 5 cm target of a 100 m session bounds this short run too.
+  EXPECT_LT(json_value(json, "trajectory_rmse_m"), 0.05) << json;
+  // Of the points the RGB camera has in its image, only those hidden from it and the
+  // conservative margins along depth edges stay uncoloured.
+  const auto rgb_at = json.find("\"rgb\"");
+  ASSERT_NE(rgb_at, std::string::npos);
+  EXPECT_GT(json_value(json.substr(rgb_at), "colored_fraction_in_view"), 0.9) << json;
+
+  // Every file reads back; temperatures in the map are those of the surfaces they lie on.
+  const auto points = read_ply((dir / "out/map.ply").string());
+  ASSERT_GT(points.size(), 10000u);
+  EXPECT_EQ(read_map_pcd((dir / "out/map.pcd").string()).size(), points.size());
+  const test::Scene scene = test::structured_scene();
+  double sum_error = 0.0;
+  int checked = 0;
+  for (const MapPoint& p : points) {
+    if (std::isnan(p.temperature_k)) continue;
+    const auto [distance, surface] = nearest_surface(scene, p.position_m.cast<double>());
+    if (distance > 0.05) continue;  // voxel means at corners lie between surfaces
+    sum_error += std::abs(p.temperature_k - scene.temperature_k(surface, p.position_m.cast<double>()));
+    ++checked;
+  }
+  ASSERT_GT(checked, 1000);
+  // The mapping target: mean thermal error on coloured points < 0.5 K.
+  EXPECT_LT(sum_error / checked, 0.5);
+  RecordProperty("mean_thermal_error_k", std::to_string(sum_error / checked));
+
+  octomap::OcTree occupancy(0.1);
+  EXPECT_TRUE(occupancy.readBinary((dir / "out/map.bt").string()));
+  EXPECT_GT(occupancy.getNumLeafNodes(), 1000u);
+  std::unique_ptr<octomap::AbstractOcTree> rgb(octomap::AbstractOcTree::read((dir / "out/map_rgb.ot").string()));
+  EXPECT_NE(dynamic_cast<octomap::ColorOcTree*>(rgb.get()), nullptr);
+  std::unique_ptr<octomap::AbstractOcTree> thermal(
+      octomap::AbstractOcTree::read((dir / "out/map_thermal.ot").string()));
+  EXPECT_NE(dynamic_cast<ThermalOcTree*>(thermal.get()), nullptr);
+  for (const char* name : {"render_rgb_top.png", "render_rgb_perspective.png", "render_thermal_top.png",
+                           "render_thermal_perspective.png"}) {
+    EXPECT_FALSE(cv::imread((dir / "out" / name).string()).empty()) << name;
+  }
+  const auto trajectory = read_trajectory_csv((dir / "out/trajectory.csv").string());
+  EXPECT_EQ(trajectory.size(), 6u);
+}
+
+TEST(MapperApp, FailsWithAClearMessageOnAMissingCalibration) {
+  const char* bin = std::getenv("RGBDT_BIN_DIR");
+  ASSERT_NE(bin, nullptr);
+  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "MapperAppMissingCalib";
+  fs::remove_all(dir);
+  write_session(dir / "session", 2);
+  const std::string command = std::string(bin) + "/rgbdt_mapper " + (dir / "session").string() + " --calib " +
+                              (dir / "nowhere").string() + " --out " + (dir / "out").string() + " > " +
+                              (dir / "log.txt").string() + " 2>&1";
+  EXPECT_NE(std::system(command.c_str()), 0);
+  std::ifstream in(dir / "log.txt");
+  const std::string log((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(log.find("extrinsics_"), std::string::npos) << log;
+}
