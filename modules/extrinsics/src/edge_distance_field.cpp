@@ -153,18 +153,59 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
   }
   points_ = edge_points_px;
   normals_ = std::move(normals);
+
+  search_cols_ = cols_ / kSearchCell + 1;
+  search_rows_ = rows_ / kSearchCell + 1;
+  std::vector<int> cell_of(n);
+  search_start_.assign(static_cast<size_t>(search_cols_) * search_rows_ + 1, 0);
+  for (int i = 0; i < n; ++i) {
+    const int c = static_cast<int>(std::floor(points_[i].x() - col_begin_)) / kSearchCell;
+    const int r = static_cast<int>(std::floor(points_[i].y() - row_begin_)) / kSearchCell;
+    cell_of[i] = r * search_cols_ + c;
+    ++search_start_[cell_of[i] + 1];
+  }
+  for (size_t k = 1; k < search_start_.size(); ++k) search_start_[k] += search_start_[k - 1];
+  search_index_.resize(n);
+  std::vector<int> fill(search_start_.begin(), search_start_.end() - 1);
+  for (int i = 0; i < n; ++i) search_index_[fill[cell_of[i]]++] = i;  // ascending i per cell
 }
 
 void EdgeDistanceField::nearest_edge(const Eigen::Vector2d& px, Eigen::Vector2d* point,
                                      Eigen::Vector2d* normal) const {
-  size_t best = 0;
+  // Rings of cells around the (clamped) cell of px, until no unsearched cell can hold a
+  // nearer point. Ties go to the lower index, as a linear scan would.
+  const double x = px.x() - col_begin_, y = px.y() - row_begin_;
+  const int c0 = std::clamp(static_cast<int>(std::floor(x / kSearchCell)), 0, search_cols_ - 1);
+  const int r0 = std::clamp(static_cast<int>(std::floor(y / kSearchCell)), 0, search_rows_ - 1);
+  int best = -1;
   double best_d2 = std::numeric_limits<double>::infinity();
-  for (size_t i = 0; i < points_.size(); ++i) {
-    const double d2 = (px - points_[i]).squaredNorm();
-    if (d2 < best_d2) {
-      best_d2 = d2;
-      best = i;
+  auto scan_cell = [&](int c, int r) {
+    const size_t k = static_cast<size_t>(r) * search_cols_ + c;
+    for (int j = search_start_[k]; j < search_start_[k + 1]; ++j) {
+      const int i = search_index_[j];
+      const double d2 = (px - points_[i]).squaredNorm();
+      if (d2 < best_d2 || (d2 == best_d2 && i < best)) {
+        best_d2 = d2;
+        best = i;
+      }
     }
+  };
+  for (int ring = 0;; ++ring) {
+    const int c_lo = c0 - ring, c_hi = c0 + ring, r_lo = r0 - ring, r_hi = r0 + ring;
+    for (int r = std::max(0, r_lo); r <= std::min(search_rows_ - 1, r_hi); ++r) {
+      const bool edge_row = r == r_lo || r == r_hi;
+      for (int c = std::max(0, c_lo); c <= std::min(search_cols_ - 1, c_hi); ++c) {
+        if (edge_row || c == c_lo || c == c_hi) scan_cell(c, r);
+      }
+    }
+    // Lower bound on the distance from px to any cell outside the searched square.
+    double bound = std::numeric_limits<double>::infinity();
+    if (c_lo > 0) bound = std::min(bound, std::max(0.0, x - double(c_lo) * kSearchCell));
+    if (r_lo > 0) bound = std::min(bound, std::max(0.0, y - double(r_lo) * kSearchCell));
+    if (c_hi < search_cols_ - 1) bound = std::min(bound, std::max(0.0, double(c_hi + 1) * kSearchCell - x));
+    if (r_hi < search_rows_ - 1) bound = std::min(bound, std::max(0.0, double(r_hi + 1) * kSearchCell - y));
+    if (std::isinf(bound)) break;  // every cell searched
+    if (best >= 0 && bound * bound > best_d2) break;
   }
   *point = points_[best];
   *normal = normals_[best];

@@ -66,6 +66,12 @@ class EdgeDistanceField {
   std::vector<uint8_t> inner_;
   std::vector<Eigen::Vector2d> points_, normals_;
   double tangent_reach_px_ = 3.0;
+  // Edge points bucketed in kSearchCell-px cells over the grid (CSR: the points of cell k
+  // are search_index_[search_start_[k] .. search_start_[k + 1])), so that nearest_edge
+  // searches rings of cells outward instead of scanning every point.
+  static constexpr int kSearchCell = 16;
+  int search_cols_ = 0, search_rows_ = 0;
+  std::vector<int> search_start_, search_index_;
 };
 
 }  // namespace rgbdt::extrinsics
