@@ -193,9 +193,11 @@ void EdgeDistanceField::nearest_edge(const Eigen::Vector2d& px, Eigen::Vector2d*
   for (int ring = 0;; ++ring) {
     const int c_lo = c0 - ring, c_hi = c0 + ring, r_lo = r0 - ring, r_hi = r0 + ring;
     for (int r = std::max(0, r_lo); r <= std::min(search_rows_ - 1, r_hi); ++r) {
-      const bool edge_row = r == r_lo || r == r_hi;
-      for (int c = std::max(0, c_lo); c <= std::min(search_cols_ - 1, c_hi); ++c) {
-        if (edge_row || c == c_lo || c == c_hi) scan_cell(c, r);
+      if (r == r_lo || r == r_hi) {
+        for (int c = std::max(0, c_lo); c <= std::min(search_cols_ - 1, c_hi); ++c) scan_cell(c, r);
+      } else {
+        if (c_lo >= 0) scan_cell(c_lo, r);
+        if (c_hi < search_cols_ && c_hi != c_lo) scan_cell(c_hi, r);
       }
     }
     // Lower bound on the distance from px to any cell outside the searched square.
