@@ -1,0 +1,72 @@
+// Intrinsic calibration on the simulated 40-view thermal checkerboard set (paper Sec. 3.1)
+// against the simulator's true intrinsics: the issue's accuracy targets.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "rgbdt/calib_targets/intrinsics.hpp"
+#include "rgbdt/sim/checkerboard_session.hpp"
+
+namespace ct = rgbdt::calib_targets;
+namespace fs = std::filesystem;
+
+TEST(ThermalIntrinsicsSim, FortyViewsMeetIssueTargets) {
+  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "calib_targets_thermal_intrinsics";
+  fs::remove_all(dir);
+  rgbdt::sim::CheckerboardSessionOptions opt;
+  opt.camera = "thermal";
+  opt.views = 40;  // the paper's count (Sec. 3.1) and the issue's test set
+  opt.seed = 1;
+  const auto truth = rgbdt::sim::write_checkerboard_session(dir.string(), opt);
+  ASSERT_EQ(truth.views.size(), 40u);
+
+  ct::PatternSpec pattern;
+  pattern.type = ct::PatternType::kCheckerboard;
+  pattern.cols = opt.squares_x - 1;  // 8x6 inner corners
+  pattern.rows = opt.squares_y - 1;
+  pattern.spacing_m = opt.square_m;
+
+  std::vector<ct::PatternDetection> detections;
+  std::vector<std::string> names;
+  cv::Size size;
+  int detected = 0;
+  for (std::size_t v = 0; v < truth.views.size(); ++v) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%03zu.png", v);
+    const fs::path file = dir / "thermal" / name;
+    const cv::Mat img = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(img.empty()) << file;
+    ASSERT_EQ(img.depth(), CV_16U) << file << ": thermal views are 16-bit counts";
+    size = img.size();
+    detections.push_back(ct::detect_pattern(img, pattern));
+    names.push_back(name);
+    if (detections.back().ok) ++detected;
+  }
+  // Issue: automatic detection on the thermal set; allow 2 of 40 views (5 %) to be
+  // missed or rejected as unreliable, since the simulator draws poses up to 40 deg tilt
+  // and 0.7-1.6 m where a board may be partly blurred; 38 views are still far more than
+  // the ~10-20 views a stable pinhole + distortion fit needs.
+  EXPECT_GE(detected, 38) << "of 40 views";
+
+  const auto result = ct::calibrate_intrinsics(detections, names, size, pattern);
+  ASSERT_TRUE(result.ok) << result.reason;
+  const double fx_err = std::abs(result.intrinsics.fx - truth.intrinsics.fx) / truth.intrinsics.fx;
+  const double fy_err = std::abs(result.intrinsics.fy - truth.intrinsics.fy) / truth.intrinsics.fy;
+  std::cout << "detected " << detected << "/40, RMS " << result.rms_px << " px, fx "
+            << result.intrinsics.fx << " (true " << truth.intrinsics.fx << ", " << 100.0 * fx_err
+            << " %), fy " << result.intrinsics.fy << " (true " << truth.intrinsics.fy << ", "
+            << 100.0 * fy_err << " %), terms " << result.distortion_terms << "\n";
+  // Issue targets: RMS <= 0.25 px, the paper's thermal result with RADOCC (Sec. 3.1,
+  // 0.24 px), which we must at least match on simulated 640x512 images with NETD noise and
+  // blur; fx, fy within 0.3 % of the truth (~1.25 px at fx ~417), small enough that the
+  // focal-length error stays below the paper's error model's other terms.
+  EXPECT_LE(result.rms_px, 0.25);
+  EXPECT_LE(fx_err, 0.003);
+  EXPECT_LE(fy_err, 0.003);
+  fs::remove_all(dir);
+}
