@@ -95,7 +95,7 @@ TEST(RawlogIo, ReplayedRawlogAssemblesLikeTheLiveStream) {
 }
 
 TEST(RawlogIo, MrptRawlogEditReadsOurFile) {
-  if (!fs::exists("/usr/bin/rawlog-edit")) GTEST_SKIP() << "/usr/bin/rawlog-edit (Debian mrpt-apps) is not installed";
+  ASSERT_TRUE(fs::exists("/usr/bin/rawlog-edit")) << "/usr/bin/rawlog-edit is missing: run scripts/install-deps (Debian mrpt-apps)";
   const auto rig = test::test_rig();
   const auto s = test::make_stream(rig, test::MotionProfile{}, 0.5);
   const fs::path dir = test::temp_dir("rawlog");
