@@ -40,13 +40,27 @@ int main() {
     }
     v.lidar_centers.push_back(c);
     v.lidar_normals.push_back(n);
+    // The hole's image ellipse (its centre seeds the coarse stage that widens the basin).
+    Eigen::Vector2d centre_px;
+    if (camera.project(T_camera_lidar * c, &centre_px)) {
+      const float diameter_px = static_cast<float>(2 * radius * intr.fx / c.norm());
+      v.image_ellipses.emplace_back(cv::Point2f(centre_px.x(), centre_px.y()),
+                                    cv::Size2f(diameter_px, diameter_px), 0.0f);
+    }
     views.push_back(v);
   }
   const Eigen::Isometry3d guess =
       core::from_vector6(core::to_vector6(T_camera_lidar) + (core::Vector6d() << 0.05, -0.05, 0.03, 0.1, -0.1, 0.05).finished());
   const auto result = extrinsics::align_edges(views, camera, {}, guess);
+  // And with no guess at all: the closed-form start from the same holes.
+  const auto unguided = extrinsics::align_edges(views, camera);
+  const double dr0 = core::rotation_error_rad(unguided.T_camera_lidar, T_camera_lidar) * 180 / M_PI;
+  const double dt0 = core::translation_error_m(unguided.T_camera_lidar, T_camera_lidar);
+  std::cout << "consumer: with no guess, within " << dr0 << " deg, " << dt0 * 100 << " cm\n";
   const double dr = core::rotation_error_rad(result.T_camera_lidar, T_camera_lidar) * 180 / M_PI;
   const double dt = core::translation_error_m(result.T_camera_lidar, T_camera_lidar);
   std::cout << "consumer: recovered T_camera_lidar within " << dr << " deg, " << dt * 100 << " cm\n";
-  return (result.converged && dr < 0.01 && dt < 0.001) ? 0 : 1;
+  const bool ok = result.converged && dr < 0.01 && dt < 0.001;
+  const bool ok0 = unguided.converged && dr0 < 0.01 && dt0 < 0.001;
+  return (ok && ok0) ? 0 : 1;
 }
