@@ -150,7 +150,20 @@ struct AssembleArgs {
 };
 
 int assemble(const AssembleArgs& a) {
-  const core::TiltRig rig = core::read_tilt_rig(a.rig);
+  // `record` writes <out>.tilt_rig.yaml beside the rawlog; use it unless told otherwise.
+  std::string rig_path = a.rig;
+  if (rig_path.empty()) {
+    rig_path = fs::path(a.rawlog).replace_extension(".tilt_rig.yaml").string();
+    if (!fs::exists(rig_path)) {
+      std::fprintf(stderr,
+                   "assemble: no --rig given and %s (written by `record` beside the rawlog) does "
+                   "not exist; pass --rig tilt_rig.yaml\n",
+                   rig_path.c_str());
+      return 1;
+    }
+    std::printf("rig: %s\n", rig_path.c_str());
+  }
+  const core::TiltRig rig = core::read_tilt_rig(rig_path);
   tilt_lidar::Assembler assembler(rig, a.options);
   const fs::path clouds = fs::path(a.out) / "clouds";
   fs::create_directories(clouds);
@@ -231,7 +244,10 @@ int main(int argc, char** argv) {
   AssembleArgs aa;
   auto* asmb = app.add_subcommand("assemble", "assemble a raw rawlog into one PCD per tilt");
   asmb->add_option("rawlog", aa.rawlog, "input rawlog")->required()->check(CLI::ExistingFile);
-  asmb->add_option("--rig", aa.rig, "tilt_rig.yaml (frames, beam timing, encoder)")->required()->check(CLI::ExistingFile);
+  asmb->add_option("--rig", aa.rig,
+                   "tilt_rig.yaml (frames, beam timing, encoder); default: the "
+                   "<rawlog>.tilt_rig.yaml that `record` wrote beside the rawlog")
+      ->check(CLI::ExistingFile);
   asmb->add_option("--out", aa.out, "output folder (clouds/NNNNNN.pcd, clouds/index.csv)")->required();
   asmb->add_option("--max-gap", aa.options.max_encoder_gap_s, "longest encoder gap to interpolate across [s]")->capture_default_str();
   asmb->add_option("--encoder-offset", aa.options.encoder_time_offset_s, "encoder clock -> scanner clock offset [s]")->capture_default_str();
