@@ -26,8 +26,6 @@ void reserve_for(B& b, int n) {
   const auto more = static_cast<std::size_t>(n);
   grow(b.points, more);
   grow(b.spherical, more);
-  grow(b.time_s, more);
-  grow(b.scan_seq, more);
 }
 
 }  // namespace
@@ -200,9 +198,8 @@ void Assembler::detect_reversals(double horizon_s, std::vector<TiltCloud>& out) 
 void Assembler::on_reversal(double t_turn_s, int new_direction, std::vector<TiltCloud>& out) {
   ++stats_.reversals;
   Building& b = building_;
-  const double last_t = b.time_s.empty() ? -1e300 : b.time_s.back();
   const double last_np = b.nonpoint.empty() ? -1e300 : b.nonpoint.back().first;
-  if (std::max(last_t, last_np) <= t_turn_s) {
+  if (std::max(b.last_time_s, last_np) <= t_turn_s) {
     pending_reversals_.emplace_back(t_turn_s, new_direction);
     return;
   }
@@ -210,15 +207,30 @@ void Assembler::on_reversal(double t_turn_s, int new_direction, std::vector<Tilt
   Building next;
   next.direction = new_direction;
   next.starts_at_reversal = true;
-  const std::size_t k = std::upper_bound(b.time_s.begin(), b.time_s.end(), t_turn_s) - b.time_s.begin();
-  next.points.assign(b.points.begin() + k, b.points.end());
-  next.spherical.assign(b.spherical.begin() + k, b.spherical.end());
-  next.time_s.assign(b.time_s.begin() + k, b.time_s.end());
-  next.scan_seq.assign(b.scan_seq.begin() + k, b.scan_seq.end());
-  b.points.resize(k);
-  b.spherical.resize(k);
-  b.time_s.resize(k);
-  b.scan_seq.resize(k);
+  // Point times are float offsets from t0 (beams are 25 us apart; float resolution at 1 s
+  // is 0.06 us), so the split on them is the split on the beam times.
+  const float t_turn_rel = static_cast<float>(t_turn_s - b.t0_s);
+  const std::size_t k = std::upper_bound(b.points.begin(), b.points.end(), t_turn_rel,
+                                         [](float t, const cloud::PointXYZIRT& p) { return t < p.t; }) -
+                        b.points.begin();
+  if (k < b.points.size()) {
+    const float t_first = b.points[k].t;
+    const int ring_first = b.points[k].ring;
+    next.points.assign(b.points.begin() + k, b.points.end());
+    next.spherical.assign(b.spherical.begin() + k, b.spherical.end());
+    for (auto& p : next.points) {
+      p.t -= t_first;
+      p.ring = static_cast<std::uint16_t>(p.ring - ring_first);
+    }
+    next.t0_s = b.t0_s + t_first;
+    next.last_time_s = b.last_time_s;
+    next.ring = b.ring - ring_first;
+    next.ring_seq = b.ring_seq;
+    b.points.resize(k);
+    b.spherical.resize(k);
+    b.last_time_s = k > 0 ? b.t0_s + b.points[k - 1].t : -1e300;
+    b.ring = k > 0 ? b.points[k - 1].ring : -1;
+  }
   const std::size_t m = std::upper_bound(b.nonpoint.begin(), b.nonpoint.end(), t_turn_s,
                                          [](double t, const auto& e) { return t < e.first; }) -
                         b.nonpoint.begin();
@@ -316,10 +328,16 @@ void Assembler::assemble_scan(const Scan& scan, std::int64_t seq, std::vector<Ti
     p.y = py;
     p.z = -sf * px + cf * pz;
     p.intensity = has_intensity ? scan.intensity[i] : 0.0f;
+    if (b->points.empty()) b->t0_s = tb;
+    if (seq != b->ring_seq) {
+      ++b->ring;
+      b->ring_seq = seq;
+    }
+    p.ring = static_cast<std::uint16_t>(std::min(b->ring, 65535));
+    p.t = static_cast<float>(tb - b->t0_s);
+    b->last_time_s = tb;
     b->points.push_back(p);
     b->spherical.push_back({r, theta_[i], static_cast<float>(phi)});
-    b->time_s.push_back(tb);
-    b->scan_seq.push_back(seq);
   }
 }
 
@@ -339,19 +357,7 @@ void Assembler::finish_tilt(Building& b, bool ends_at_reversal, std::vector<Tilt
   stats_.dropped_no_encoder += st.dropped_no_encoder;
   if (b.points.empty() && b.nonpoint.empty()) return;
 
-  // Rings are dense scan indices within the tilt; t is relative to the first point.
-  int ring = -1;
-  std::int64_t prev_seq = -1;
-  const double t0 = b.time_s.empty() ? 0.0 : b.time_s.front();
-  for (std::size_t k = 0; k < b.points.size(); ++k) {
-    if (b.scan_seq[k] != prev_seq) {
-      ++ring;
-      prev_seq = b.scan_seq[k];
-    }
-    b.points[k].ring = static_cast<std::uint16_t>(std::min(ring, 65535));
-    b.points[k].t = static_cast<float>(b.time_s[k] - t0);
-  }
-  st.scans = ring + 1;
+  st.scans = b.points.empty() ? 0 : b.ring + 1;
   if (st.scans < options_.min_scans_per_tilt) {
     ++stats_.tilts_discarded;
     return;
@@ -363,8 +369,8 @@ void Assembler::finish_tilt(Building& b, bool ends_at_reversal, std::vector<Tilt
   tc.cloud->height = 1;
   tc.cloud->is_dense = true;
   tc.spherical = std::move(b.spherical);
-  tc.start_time_s = t0;
-  tc.end_time_s = b.time_s.back();
+  tc.start_time_s = b.t0_s;
+  tc.end_time_s = b.last_time_s;
   tc.direction = b.direction;
   tc.partial = !(b.starts_at_reversal && ends_at_reversal);
   tc.stats = st;

@@ -216,13 +216,14 @@ void HokuyoEmulator::serve_client(int fd) {
       frame.ranges_mm.resize(static_cast<std::size_t>(device.measurement_beams()), 0);
       if (device.measurement_intensity()) frame.intensity.resize(frame.ranges_mm.size(), 0);
       else frame.intensity.clear();
-      if (!send_all(fd, device.scan_message(frame))) return;
-      ++scans_sent_;
-      {
+      const std::string message = device.scan_message(frame);
+      {  // remembered before sending: a fast client may look it up as soon as it arrives
         std::lock_guard<std::mutex> lock(mutex_);
         served_.push_back({index, std::move(frame)});
         while (served_.size() > options_.keep_served) served_.pop_front();
       }
+      if (!send_all(fd, message)) return;
+      ++scans_sent_;
       next_scan_s += options_.scan_period_s;
       // After a stall, skip missed slots rather than bursting (a real scanner cannot).
       if (steady_now_s() - next_scan_s > options_.scan_period_s) next_scan_s = steady_now_s();

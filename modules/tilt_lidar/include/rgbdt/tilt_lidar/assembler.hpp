@@ -125,10 +125,13 @@ class Assembler {
   struct Building {  // the tilt being filled
     cloud::Cloud::VectorType points;
     std::vector<SphericalPoint> spherical;
-    std::vector<double> time_s;
-    std::vector<std::int64_t> scan_seq;
     std::vector<std::pair<double, std::uint8_t>> nonpoint;  // (time, why) of beams without a point
-    std::int64_t last_scan_seq = -1;
+    // ring and t are written into each point as it is made (no per-point side arrays: the
+    // < 1 ms per tilt budget): t is relative to t0_s, ring counts the scans with points.
+    double t0_s = 0.0;            // time of the first point [s], scanner clock
+    double last_time_s = -1e300;  // time of the last point [s]
+    int ring = -1;                // ring of the last point
+    std::int64_t ring_seq = -1;   // scan sequence number of that ring
     int direction = 0;
     bool starts_at_reversal = false;
   };
