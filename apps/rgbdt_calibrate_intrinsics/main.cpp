@@ -123,6 +123,16 @@ int main(int argc, char** argv) {
       std::cerr << "error: no images in " << images_dir << "\n";
       return 1;
     }
+    // Make the output folder now: finding out after minutes of detection that it cannot be
+    // written would lose the work.
+    if (const fs::path parent = fs::path(out).parent_path(); !parent.empty()) {
+      std::error_code ec;
+      fs::create_directories(parent, ec);
+      if (ec) {
+        std::cerr << "error: cannot create the folder of --out " << out << ": " << ec.message() << "\n";
+        return 1;
+      }
+    }
     std::vector<cv::Mat> images;
     std::vector<ct::PatternDetection> det;
     std::vector<std::string> names;

@@ -43,7 +43,7 @@ struct PatternDetectionOptions {
   bool try_inverted = true;       ///< both polarities
   bool try_clahe = true;          ///< local contrast equalisation as a further attempt
   bool try_upscale = true;        ///< 2x upscaled attempt for small patterns
-  int subpix_window_px = 5;       ///< cornerSubPix half window (checkerboard)
+  int subpix_window_px = 5;       ///< cornerSubPix half window (classic checkerboard detector only)
   std::string validate() const;
 };
 
