@@ -27,7 +27,11 @@ struct AppRun {
 };
 
 AppRun run_app(const std::string& args) {
-  const std::string log = (fs::temp_directory_path() / "rgbdt_calibrate_test.log").string();
+  // One log per test: ctest runs the tests of this file as parallel processes.
+  const fs::path log_dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "rgbdt_calibrate_logs";
+  fs::create_directories(log_dir);
+  const std::string log =
+      (log_dir / (std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + ".log")).string();
   const int status = std::system((bin_dir() + "/rgbdt_calibrate " + args + " > " + log + " 2>&1").c_str());
   std::ifstream f(log);
   std::stringstream ss;
@@ -37,7 +41,7 @@ AppRun run_app(const std::string& args) {
 
 // A session of a wall with no target: a flat LIDAR plane and uniform grey images.
 std::string write_session_without_target(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / name;
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / name;
   fs::remove_all(dir);
   fs::create_directories(dir / "clouds");
   fs::create_directories(dir / "rgb");
@@ -94,7 +98,7 @@ TEST(RgbdtCalibrate, SessionWhoseTargetIsNeverFoundFailsWithAClearError) {
 }
 
 TEST(RgbdtCalibrate, MissingSessionNamesTheFile) {
-  const AppRun r = run_app("/nonexistent/session --out /tmp/rgbdt_calibrate_none");
+  const AppRun r = run_app("/nonexistent/session --out " + (fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "rgbdt_calibrate_none").string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("/nonexistent/session"), std::string::npos) << r.output;
 }

@@ -30,7 +30,7 @@ std::string program() {
 
 fs::path temp_dir(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" /
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
                        (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
   fs::remove_all(dir);
   fs::create_directories(dir);

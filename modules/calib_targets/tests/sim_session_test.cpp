@@ -16,7 +16,7 @@ namespace ct = rgbdt::calib_targets;
 namespace fs = std::filesystem;
 
 TEST(SimSession, TenViewsDetectedAgainstGroundTruth) {
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "calib_targets_sim_session";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "calib_targets_sim_session";
   fs::remove_all(dir);
   rgbdt::sim::CalibrationSessionOptions opt;
   opt.views = 10;

@@ -16,7 +16,7 @@ namespace ct = rgbdt::calib_targets;
 namespace fs = std::filesystem;
 
 TEST(ThermalIntrinsicsSim, FortyViewsMeetIssueTargets) {
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "calib_targets_thermal_intrinsics";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "calib_targets_thermal_intrinsics";
   fs::remove_all(dir);
   rgbdt::sim::CheckerboardSessionOptions opt;
   opt.camera = "thermal";

@@ -11,7 +11,7 @@ namespace fs = std::filesystem;
 
 namespace {
 fs::path temp_file(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "pcd_io";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "pcd_io";
   fs::create_directories(dir);
   return dir / name;
 }

@@ -10,7 +10,7 @@ namespace rgbdt::test {
 
 inline std::filesystem::path temp_dir(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "rgbdt_tests" /
+  const std::filesystem::path dir = std::filesystem::path(RGBDT_BINARY_DIR) / "test_tmp" /
                                     (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);

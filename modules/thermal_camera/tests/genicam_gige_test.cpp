@@ -237,7 +237,7 @@ void expect_whole_indexed_frames(const fs::path& out) {
 }  // namespace
 
 TEST(GenicamGige, RecorderKeepsWholeIndexedFramesAcrossACameraLoss) {
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "GenicamGige.RecorderAcrossLoss";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "GenicamGige.RecorderAcrossLoss";
   fs::remove_all(dir);
   fs::create_directories(dir);
   const fs::path out = dir / "thermal", log = dir / "log";
