@@ -46,7 +46,7 @@ TwoTilts two_tilts() {
 RegistrationResult run(const TwoTilts& t, IcpBackend backend) {
   RegistrationOptions options;
   options.backend = backend;
-  return register_clouds(downsample(to_xyz(t.b), options.source_voxel_m), downsample(to_xyz(t.a), options.map_voxel_m),
+  return register_clouds(downsample(to_xyz(t.b), options.source_voxel_m), downsample(to_xyz(t.a), options.source_voxel_m),
                          Eigen::Isometry3d::Identity(), options);
 }
 
