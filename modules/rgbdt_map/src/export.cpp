@@ -391,7 +391,7 @@ void OccupancyMapBuilder::insert_rays(const std::vector<Eigen::Vector3f>& points
     apply_sorted(*tree_, coarse, coarse_levels, tree_->getProbMissLog());
     apply_sorted(*tree_, crossed, 16, tree_->getProbMissLog());
   }
-  if (tree_->size() > 2 * nodes_after_prune_) {
+  if (tree_->size() > nodes_after_prune_ + nodes_after_prune_ / 4) {
     // Free space clamps to one value where it is seen often: collapse it (octomap's prune).
     tree_->prune();
     nodes_after_prune_ = tree_->size();
