@@ -420,8 +420,8 @@ void write_color_octree(const std::string& path, const std::vector<MapPoint>& po
     if (!p.has_rgb) continue;
     octomap::OcTreeKey key;
     if (!tree.coordToKeyChecked(octomap::point3d(p.position_m.x(), p.position_m.y(), p.position_m.z()), key)) continue;
-    tree.updateNode(key, true, /*lazy_eval=*/true);
-    tree.setNodeColor(key, p.rgb[0], p.rgb[1], p.rgb[2]);
+    // updateNode returns the leaf: no second search to colour it.
+    tree.updateNode(key, true, /*lazy_eval=*/true)->setColor(p.rgb[0], p.rgb[1], p.rgb[2]);
   }
   tree.updateInnerOccupancy();
   if (!tree.write(path)) throw core::Error(path, "cannot write OctoMap ColorOcTree");
@@ -434,8 +434,7 @@ void write_thermal_octree(const std::string& path, const std::vector<MapPoint>& 
     if (std::isnan(p.temperature_k)) continue;
     octomap::OcTreeKey key;
     if (!tree.coordToKeyChecked(octomap::point3d(p.position_m.x(), p.position_m.y(), p.position_m.z()), key)) continue;
-    tree.updateNode(key, true, /*lazy_eval=*/true);
-    tree.set_node_temperature(key, p.temperature_k);
+    tree.updateNode(key, true, /*lazy_eval=*/true)->set_temperature_k(p.temperature_k);
   }
   tree.update_inner_nodes();
   if (!tree.write(path)) throw core::Error(path, "cannot write ThermalOcTree");
