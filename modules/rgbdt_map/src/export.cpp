@@ -5,9 +5,12 @@
 #include <octomap/ColorOcTree.h>
 #include <pcl/io/pcd_io.h>
 
+#include <algorithm>
+#include <array>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <sstream>
 #include <unordered_set>
@@ -163,6 +166,7 @@ std::string OccupancyOptions::validate() const {
   std::ostringstream os;
   if (!(resolution_m > 0.0)) os << "resolution_m = " << resolution_m << ", expected > 0; ";
   if (!(prob_hit > 0.5 && prob_hit < 1.0)) os << "prob_hit = " << prob_hit << ", expected in (0.5, 1); ";
+  if (!(free_space_cell_m >= 0.0)) os << "free_space_cell_m = " << free_space_cell_m << ", expected >= 0; ";
   if (!(free_space_voxel_m >= 0.0)) os << "free_space_voxel_m = " << free_space_voxel_m << ", expected >= 0; ";
   if (!(prob_miss > 0.0 && prob_miss < 0.5)) os << "prob_miss = " << prob_miss << ", expected in (0, 0.5); ";
   return os.str();
@@ -171,41 +175,227 @@ std::string OccupancyOptions::validate() const {
 OccupancyMapBuilder::OccupancyMapBuilder(const OccupancyOptions& options) : options_(options) {
   if (const std::string why = options.validate(); !why.empty()) throw std::invalid_argument("OccupancyOptions: " + why);
   tree_ = std::make_unique<octomap::OcTree>(options.resolution_m);
+  // The octree cell closest to (not above) free_space_cell_m: 2^levels_up leaves.
+  while (free_space_levels_up_ < 4 &&
+         options.resolution_m * (1 << (free_space_levels_up_ + 1)) <= options.free_space_cell_m * 1.0001) {
+    ++free_space_levels_up_;
+  }
   tree_->setProbHit(options.prob_hit);
   tree_->setProbMiss(options.prob_miss);
 }
 
+namespace {
+
+// An octree key (16 bits per axis) as a Morton code, most significant level first: sorted
+// codes visit the tree depth first, so consecutive updates share most of their path.
+// Level l's 3 bits are octomap's child index there (x + 2y + 4z, octomap's computeChildIdx).
+std::uint64_t morton(const octomap::OcTreeKey& key) {
+  auto spread = [](std::uint64_t v) {  // bit i -> bit 3i
+    v &= 0xffff;
+    v = (v | (v << 16)) & 0x0000ff0000ffULL;
+    v = (v | (v << 8)) & 0x00f00f00f00fULL;
+    v = (v | (v << 4)) & 0x0c30c30c30c3ULL;
+    v = (v | (v << 2)) & 0x249249249249ULL;
+    return v;
+  };
+  return spread(key[0]) | (spread(key[1]) << 1) | (spread(key[2]) << 2);
+}
+
+// LSD radix sort of 48-bit codes, 16 bits per pass, then duplicates removed: the batch holds
+// ~10^6 ray cells, mostly repeats near the sensor.
+void sort_unique(std::vector<std::uint64_t>& codes, std::vector<std::uint64_t>& scratch) {
+  scratch.resize(codes.size());
+  std::vector<std::uint32_t> count(1 << 16);
+  for (int pass = 0; pass < 3; ++pass) {
+    const int shift = 16 * pass;
+    std::fill(count.begin(), count.end(), 0u);
+    for (const std::uint64_t c : codes) ++count[(c >> shift) & 0xffff];
+    std::uint32_t sum = 0;
+    for (auto& n : count) {
+      const std::uint32_t here = n;
+      n = sum;
+      sum += here;
+    }
+    for (const std::uint64_t c : codes) scratch[count[(c >> shift) & 0xffff]++] = c;
+    codes.swap(scratch);
+  }
+  codes.erase(std::unique(codes.begin(), codes.end()), codes.end());
+}
+
+octomap::OcTreeKey key_of(std::uint64_t code, int levels) {
+  octomap::OcTreeKey key;
+  for (int a = 0; a < 3; ++a) {
+    std::uint16_t k = 0;
+    for (int l = 0; l < levels; ++l) k |= static_cast<std::uint16_t>(((code >> (3 * l + a)) & 1u) << (l + 16 - levels));
+    key[a] = k;
+  }
+  return key;
+}
+
+// Applies one batch of log-odds updates to the nodes at depth `levels` (16: leaves) whose
+// Morton codes (3 bits per level) are `codes`, sorted and unique, exactly as octomap's
+// updateNode(key, log_odds, lazy_eval = true) does one key at a time (same node creation,
+// same expansion of pruned nodes, same clamping), but walking down only from the deepest
+// node shared with the previous key instead of from the root. A node updated above the
+// leaves has no children: octomap reads it as a pruned leaf covering its whole cube.
+void apply_sorted(octomap::OcTree& tree, const std::vector<std::uint64_t>& codes, int levels, float log_odds) {
+  constexpr int kDepth = 16;
+  if (codes.empty()) return;
+  std::size_t first = 0;
+  if (tree.getRoot() == nullptr) {
+    // octomap creates the root on the first update; let it (a leaf update: only used for
+    // the first batch, which always holds occupied end points).
+    tree.updateNode(key_of(codes[0], levels), log_odds, /*lazy_eval=*/true);
+    first = 1;
+  }
+  const float min_log = tree.getClampingThresMinLog(), max_log = tree.getClampingThresMaxLog();
+  std::array<octomap::OcTreeNode*, kDepth + 1> path{};
+  std::array<bool, kDepth + 1> created{};
+  path[0] = tree.getRoot();
+  int valid = 0;  // path[0..valid] belongs to the previous code
+  const int bits = 3 * levels;
+  for (std::size_t i = first; i < codes.size(); ++i) {
+    const std::uint64_t code = codes[i];
+    if (i > first) {
+      // Levels shared with the previous code: its leading equal 3-bit groups.
+      const std::uint64_t diff = code ^ codes[i - 1];
+      const int highest = 63 - __builtin_clzll(diff);  // codes are unique: diff != 0
+      valid = std::min(valid, (bits - 1 - highest) / 3);
+    }
+    bool unchanged = false;
+    for (int depth = valid; depth < levels; ++depth) {
+      octomap::OcTreeNode* node = path[depth];
+      const unsigned pos = static_cast<unsigned>((code >> (3 * (levels - 1 - depth))) & 7u);
+      bool made = false;
+      if (!tree.nodeChildExists(node, pos)) {
+        if (!tree.nodeHasChildren(node) && !created[depth]) {
+          // A pruned leaf. Already clamped the way this update goes, nothing would change:
+          // octomap's updateNode returns early there, and so do we (no expansion).
+          const float value = node->getLogOdds();
+          if ((log_odds <= 0.0f && value <= min_log) || (log_odds >= 0.0f && value >= max_log)) {
+            valid = depth;
+            unchanged = true;
+            break;
+          }
+          tree.expandNode(node);  // its children inherit its value
+        } else {
+          tree.createNodeChild(node, pos);
+          made = true;
+        }
+      }
+      path[depth + 1] = tree.getNodeChild(node, pos);
+      created[depth + 1] = made;
+    }
+    if (unchanged) continue;
+    valid = levels;
+    tree.updateNodeLogOdds(path[levels], log_odds);
+  }
+}
+
+}  // namespace
+
 void OccupancyMapBuilder::insert_scan(const std::vector<Eigen::Vector3f>& points_world,
                                       const Eigen::Vector3d& origin) {
-  const octomap::point3d sensor(static_cast<float>(origin.x()), static_cast<float>(origin.y()),
-                                static_cast<float>(origin.z()));
+  insert_rays(points_world, [o = origin.cast<float>()](std::size_t) { return o; });
+}
+
+void OccupancyMapBuilder::insert_scan(const std::vector<Eigen::Vector3f>& points_world,
+                                      const std::vector<Eigen::Vector3f>& sensor_origins_world) {
+  if (sensor_origins_world.size() != points_world.size()) {
+    throw std::invalid_argument("OccupancyMapBuilder::insert_scan: " + std::to_string(sensor_origins_world.size()) +
+                                " sensor origins for " + std::to_string(points_world.size()) +
+                                " points, expected one per point");
+  }
+  insert_rays(points_world, [&](std::size_t i) { return sensor_origins_world[i]; });
+}
+
+template <typename OriginOf>
+void OccupancyMapBuilder::insert_rays(const std::vector<Eigen::Vector3f>& points_world, OriginOf&& origin_of) {
   const double max_free = options_.max_free_range_m;
   const bool coarse = options_.free_space_voxel_m > options_.resolution_m;
   const float inv_coarse = coarse ? static_cast<float>(1.0 / options_.free_space_voxel_m) : 0.0f;
+  const float inv_fine = static_cast<float>(1.0 / options_.resolution_m);
   std::unordered_set<std::uint64_t> carved;
-  octomap::Pointcloud rays;
-  rays.reserve(points_world.size());
-  std::vector<octomap::point3d> occupied_only;
-  for (const auto& p : points_world) {
-    if (!p.allFinite()) continue;
-    const octomap::point3d q(p.x(), p.y(), p.z());
-    // Points beyond the carving range carve up to it (octomap truncates their rays) and are
-    // marked occupied separately.
-    const bool far = max_free > 0.0 && (q - sensor).norm() > max_free;
-    bool carve = true;
-    if (coarse) {
-      std::uint64_t key = 0;
-      for (int a = 0; a < 3; ++a) {
-        key = key * 2097143u + static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(p[a] * inv_coarse)) + (1 << 20));
-      }
-      carve = carved.insert(key).second;
+  auto cell_of = [](const Eigen::Vector3f& p, float inv) {
+    std::uint64_t key = 0;
+    for (int a = 0; a < 3; ++a) {
+      key = key * 2097143u + static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(p[a] * inv)) + (1 << 20));
     }
-    if (carve) rays.push_back(q);
-    if (far || !carve) occupied_only.push_back(q);
+    return key;
+  };
+  std::vector<std::uint64_t>& occupied = occupied_codes_;
+  std::vector<std::uint64_t>& free = free_codes_;
+  occupied.clear();
+  free.clear();
+  octomap::KeyRay ray;
+  std::vector<octomap::OcTreeKey> previous_ray;
+  octomap::OcTreeKey key;
+  for (std::size_t i = 0; i < points_world.size(); ++i) {
+    const Eigen::Vector3f& p = points_world[i];
+    if (!p.allFinite()) continue;
+    const octomap::point3d end(p.x(), p.y(), p.z());
+    if (tree_->coordToKeyChecked(end, key)) occupied.push_back(morton(key));
+    // One ray per end cell (octomap's discretize) or per coarse cell: rays to the same
+    // cell carve the same cells, up to the cell's size at their end.
+    const bool carve = coarse ? carved.insert(cell_of(p, inv_coarse)).second : carved.insert(cell_of(p, inv_fine)).second;
+    if (!carve) continue;
+    const Eigen::Vector3f o = origin_of(i);
+    const octomap::point3d sensor(o.x(), o.y(), o.z());
+    octomap::point3d ray_end = end;
+    const double range = (end - sensor).norm();
+    // Beyond the carving range the ray stops there (octomap's maxrange); its end point is
+    // still occupied.
+    if (max_free > 0.0 && range > max_free) ray_end = sensor + (end - sensor) * static_cast<float>(max_free / range);
+    if (tree_->computeRayKeys(sensor, ray_end, ray)) {
+      // Neighbouring rays from one origin cross the same cells for most of their way: skip
+      // the cells the previous ray crossed at the same step (a cheap first deduplication,
+      // which keeps the batch's buffers small).
+      std::size_t step = 0;
+      for (auto it = ray.begin(); it != ray.end(); ++it, ++step) {
+        if (step < previous_ray.size() && previous_ray[step] == *it) continue;
+        free.push_back(morton(*it));
+      }
+      previous_ray.assign(ray.begin(), ray.end());
+    }
   }
-  // Lazy: inner nodes are brought up to date once, before the tree is used.
-  tree_->insertPointCloud(rays, sensor, max_free, /*lazy_eval=*/true, /*discretize=*/true);
-  for (const auto& q : occupied_only) tree_->updateNode(q, true, /*lazy_eval=*/true);
+  sort_unique(occupied, scratch_);
+  sort_unique(free, scratch_);
+  // One batch, octomap's rule: a cell both crossed and hit is occupied.
+  std::vector<std::uint64_t>& crossed = merged_codes_;
+  crossed.clear();
+  std::set_difference(free.begin(), free.end(), occupied.begin(), occupied.end(), std::back_inserter(crossed));
+  apply_sorted(*tree_, occupied, 16, tree_->getProbHitLog());
+  const int coarse_levels = 16 - free_space_levels_up_;
+  if (coarse_levels == 16) {
+    apply_sorted(*tree_, crossed, 16, tree_->getProbMissLog());
+  } else {
+    // Free space in cells of 2^levels_up leaves, where no surface is known yet (the tree
+    // has no detail there, the end points of this batch included); elsewhere leaf by leaf.
+    const int shift = 3 * free_space_levels_up_;
+    std::vector<std::uint64_t>& coarse = scratch_;
+    coarse.clear();
+    std::size_t fine_end = 0;  // the leaf-by-leaf codes are compacted to the front of `crossed`
+    for (std::size_t i = 0; i < crossed.size();) {
+      const std::uint64_t prefix = crossed[i] >> shift;
+      std::size_t j = i;
+      while (j < crossed.size() && (crossed[j] >> shift) == prefix) ++j;
+      const octomap::OcTreeNode* node = tree_->search(key_of(crossed[i], 16), coarse_levels);
+      if (node != nullptr && tree_->nodeHasChildren(node)) {
+        while (i < j) crossed[fine_end++] = crossed[i++];
+      } else {
+        coarse.push_back(prefix);
+      }
+      i = j;
+    }
+    crossed.resize(fine_end);
+    apply_sorted(*tree_, coarse, coarse_levels, tree_->getProbMissLog());
+    apply_sorted(*tree_, crossed, 16, tree_->getProbMissLog());
+  }
+  if (tree_->size() > nodes_after_prune_ + nodes_after_prune_ / 4) {
+    // Free space clamps to one value where it is seen often: collapse it (octomap's prune).
+    tree_->prune();
+    nodes_after_prune_ = tree_->size();
+  }
   inner_nodes_stale_ = true;
 }
 
@@ -230,8 +420,8 @@ void write_color_octree(const std::string& path, const std::vector<MapPoint>& po
     if (!p.has_rgb) continue;
     octomap::OcTreeKey key;
     if (!tree.coordToKeyChecked(octomap::point3d(p.position_m.x(), p.position_m.y(), p.position_m.z()), key)) continue;
-    tree.updateNode(key, true, /*lazy_eval=*/true);
-    tree.setNodeColor(key, p.rgb[0], p.rgb[1], p.rgb[2]);
+    // updateNode returns the leaf: no second search to colour it.
+    tree.updateNode(key, true, /*lazy_eval=*/true)->setColor(p.rgb[0], p.rgb[1], p.rgb[2]);
   }
   tree.updateInnerOccupancy();
   if (!tree.write(path)) throw core::Error(path, "cannot write OctoMap ColorOcTree");
@@ -244,8 +434,7 @@ void write_thermal_octree(const std::string& path, const std::vector<MapPoint>& 
     if (std::isnan(p.temperature_k)) continue;
     octomap::OcTreeKey key;
     if (!tree.coordToKeyChecked(octomap::point3d(p.position_m.x(), p.position_m.y(), p.position_m.z()), key)) continue;
-    tree.updateNode(key, true, /*lazy_eval=*/true);
-    tree.set_node_temperature(key, p.temperature_k);
+    tree.updateNode(key, true, /*lazy_eval=*/true)->set_temperature_k(p.temperature_k);
   }
   tree.update_inner_nodes();
   if (!tree.write(path)) throw core::Error(path, "cannot write ThermalOcTree");

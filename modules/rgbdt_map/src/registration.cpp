@@ -1,22 +1,161 @@
 #include "rgbdt/rgbdt_map/registration.hpp"
 
+#include "rgbdt/cloud/point_types.hpp"  // defines PCL_NO_PRECOMPILE before PCL's headers
+
+#include <pcl/common/transforms.h>
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/registration/gicp.h>
 #include <pcl/registration/icp.h>
-
-#include <pcl/common/transforms.h>
+#include <pcl/search/kdtree.h>
 
 #include <chrono>
-#include <limits>
 #include <cmath>
+#include <deque>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 
 #include "rgbdt/core/transform.hpp"
 
 namespace rgbdt::rgbdt_map {
 namespace {
 constexpr int kInitIterations = 6;  ///< fixed-point iterations for the second cloud (converge in 3-4)
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+using Gicp = pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>;
+using Icp = pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>;
+using Covariances = Gicp::MatricesVector;
+
+/// A PCL aligner that tells how many iterations it ran.
+template <typename Base>
+class Counted : public Base {
+ public:
+  int iterations() const { return this->nr_iterations_; }
+};
+
+/// PCL's GICP with its covariance estimation reachable, so that Odometry estimates a
+/// cloud's covariances once, exactly as GICP would, and reuses them.
+class CovarianceGicp : public Counted<Gicp> {
+ public:
+  std::shared_ptr<Covariances> covariances_of(const XyzCloud::ConstPtr& cloud) {
+    if (static_cast<int>(cloud->size()) < getCorrespondenceRandomness()) {
+      throw std::invalid_argument("GICP covariances: a cloud of " + std::to_string(cloud->size()) +
+                                  " points after downsampling, expected at least covariance_neighbours = " +
+                                  std::to_string(getCorrespondenceRandomness()));
+    }
+    auto tree = std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>();
+    tree->setInputCloud(cloud);
+    auto out = std::make_shared<Covariances>(cloud->size());
+    computeCovariances<pcl::PointXYZ>(cloud, tree, *out);
+    return out;
+  }
+};
+
+void configure(Icp& icp, const RegistrationOptions& options) {
+  icp.setMaxCorrespondenceDistance(options.max_correspondence_m);
+  icp.setMaximumIterations(options.max_iterations);
+  // PCL's ICP compares the squared translation and the cosine of the rotation angle.
+  icp.setTransformationEpsilon(options.translation_epsilon_m * options.translation_epsilon_m);
+  icp.setTransformationRotationEpsilon(std::cos(options.rotation_epsilon_rad));
+}
+
+void configure(Gicp& gicp, const RegistrationOptions& options) {
+  gicp.setMaxCorrespondenceDistance(options.max_correspondence_m);
+  gicp.setMaximumIterations(options.max_iterations);
+  // GICP's own test: largest change of a translation component / rotation matrix element.
+  gicp.setTransformationEpsilon(options.translation_epsilon_m);
+  gicp.setRotationEpsilon(options.rotation_epsilon_rad);
+  gicp.setCorrespondenceRandomness(options.covariance_neighbours);
+  gicp.setMaximumOptimizerIterations(options.optimizer_iterations);
+}
+
+Eigen::Isometry3d to_isometry(const Eigen::Matrix4f& M_f) {
+  const Eigen::Matrix4d M = M_f.cast<double>();
+  // Re-orthonormalise the float rotation before it becomes an Isometry.
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(Eigen::Matrix3d(M.block<3, 3>(0, 0))).normalized().toRotationMatrix();
+  T.translation() = M.block<3, 1>(0, 3);
+  return T;
+}
+
+/// Runs an aligner that already has its target; fills pose, convergence and iterations.
+template <typename Aligner>
+void align(Aligner& icp, const XyzCloud::ConstPtr& source, const Eigen::Isometry3d& guess, RegistrationResult& result) {
+  XyzCloud aligned;
+  icp.align(aligned, guess.matrix().cast<float>());
+  result.converged = icp.hasConverged();
+  result.iterations = icp.iterations();
+  result.T_target_source = to_isometry(icp.getFinalTransformation());
+  result.source_points = source->size();
+}
+
+/// Voxel centroids of a tilt in the sensor frame, each with the mean time of its points.
+struct TimedPoints {
+  std::vector<Eigen::Vector3f> points;
+  std::vector<float> t_s;
+};
+
+TimedPoints sensor_voxels(const cloud::Cloud& cloud, double voxel_m, double min_range_m, double max_range_m) {
+  // PCL's VoxelGrid averages the fields it knows (x y z intensity ...), not `t`: carry the
+  // time in `intensity`.
+  auto timed = std::make_shared<pcl::PointCloud<pcl::PointXYZI>>();
+  timed->reserve(cloud.size());
+  for (const auto& p : cloud) {
+    const float range = p.getVector3fMap().norm();
+    if (!std::isfinite(range) || range < min_range_m || range > max_range_m) continue;
+    pcl::PointXYZI q;
+    q.x = p.x;
+    q.y = p.y;
+    q.z = p.z;
+    q.intensity = p.t;
+    timed->push_back(q);
+  }
+  pcl::PointCloud<pcl::PointXYZI> centroids;
+  pcl::VoxelGrid<pcl::PointXYZI> grid;
+  grid.setInputCloud(timed);
+  const float leaf = static_cast<float>(voxel_m);
+  grid.setLeafSize(leaf, leaf, leaf);
+  grid.setDownsampleAllData(true);  // intensity too: the voxel's mean time
+  grid.filter(centroids);
+  TimedPoints out;
+  out.points.reserve(centroids.size());
+  out.t_s.reserve(centroids.size());
+  for (const auto& p : centroids) {
+    out.points.emplace_back(p.x, p.y, p.z);
+    out.t_s.push_back(p.intensity);
+  }
+  return out;
+}
+
+/// Centroids moved into the LIDAR frame at the tilt's start with a constant velocity.
+/// De-skewing a centroid at its points' mean time equals the mean of the de-skewed points
+/// to first order in the motion (the neglected term is the rotation rate times the
+/// covariance of position and time inside one voxel: < 1 mm at 25 cm and 0.2 rad/s).
+XyzCloud::Ptr deskew_points(const TimedPoints& in, const Eigen::Isometry3d& motion_per_s) {
+  const core::Vector6d twist = core::to_vector6(motion_per_s);
+  const bool moving = twist.norm() > 1e-12;
+  auto out = std::make_shared<XyzCloud>();
+  out->resize(in.points.size());
+  long long cached_bin = std::numeric_limits<long long>::min();
+  Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
+  for (std::size_t i = 0; i < in.points.size(); ++i) {
+    if (moving) {
+      const long long bin = std::llround(in.t_s[i] * 1000.0);  // 1 ms: < 1.5 mm at 1.5 m/s
+      if (bin != cached_bin) {
+        T = core::from_vector6(twist * (bin * 1e-3)).cast<float>();
+        cached_bin = bin;
+      }
+    }
+    (*out)[i].getVector3fMap() = T * in.points[i];
+  }
+  return out;
+}
+
 }  // namespace
 
 const char* to_string(IcpBackend backend) {
@@ -32,9 +171,13 @@ IcpBackend icp_backend_from_string(const std::string& name) {
 std::string RegistrationOptions::validate() const {
   std::ostringstream os;
   if (!(source_voxel_m > 0.0)) os << "source_voxel_m = " << source_voxel_m << ", expected > 0; ";
-  if (!(map_voxel_m > 0.0)) os << "map_voxel_m = " << map_voxel_m << ", expected > 0; ";
   if (!(max_correspondence_m > 0.0)) os << "max_correspondence_m = " << max_correspondence_m << ", expected > 0; ";
   if (max_iterations < 1) os << "max_iterations = " << max_iterations << ", expected >= 1; ";
+  if (!(translation_epsilon_m > 0.0)) os << "translation_epsilon_m = " << translation_epsilon_m << ", expected > 0; ";
+  if (!(rotation_epsilon_rad > 0.0)) os << "rotation_epsilon_rad = " << rotation_epsilon_rad << ", expected > 0; ";
+  if (covariance_neighbours < 3) os << "covariance_neighbours = " << covariance_neighbours << ", expected >= 3; ";
+  if (optimizer_iterations < 1) os << "optimizer_iterations = " << optimizer_iterations << ", expected >= 1; ";
+  if (!(refine_above_m >= 0.0)) os << "refine_above_m = " << refine_above_m << ", expected >= 0; ";
   if (local_map_clouds < 1) os << "local_map_clouds = " << local_map_clouds << ", expected >= 1; ";
   if (!(min_range_m >= 0.0 && max_range_m > min_range_m)) {
     os << "range [" << min_range_m << ", " << max_range_m << "] m, expected 0 <= min < max; ";
@@ -45,7 +188,7 @@ std::string RegistrationOptions::validate() const {
 XyzCloud::Ptr downsample(const XyzCloud& cloud, double voxel_m) {
   auto out = std::make_shared<XyzCloud>();
   pcl::VoxelGrid<pcl::PointXYZ> grid;
-  grid.setInputCloud(std::make_shared<XyzCloud>(cloud));
+  grid.setInputCloud(std::shared_ptr<const XyzCloud>(&cloud, [](const XyzCloud*) {}));
   const float leaf = static_cast<float>(voxel_m);
   grid.setLeafSize(leaf, leaf, leaf);
   grid.filter(*out);
@@ -57,41 +200,30 @@ RegistrationResult register_clouds(const XyzCloud::ConstPtr& source, const XyzCl
   if (const std::string why = options.validate(); !why.empty()) {
     throw std::invalid_argument("RegistrationOptions: " + why);
   }
-  if (!source || !target || source->size() < 10 || target->size() < 10) {
-    throw std::invalid_argument("register_clouds: need at least 10 source and target points, got " +
-                                std::to_string(source ? source->size() : 0) + " and " +
-                                std::to_string(target ? target->size() : 0));
+  const std::size_t min_points = std::max<std::size_t>(10, options.covariance_neighbours);
+  if (!source || !target || source->size() < min_points || target->size() < min_points) {
+    throw std::invalid_argument("register_clouds: need at least " + std::to_string(min_points) +
+                                " source and target points, got " + std::to_string(source ? source->size() : 0) +
+                                " and " + std::to_string(target ? target->size() : 0));
   }
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = Clock::now();
   RegistrationResult result;
-  result.source_points = source->size();
   result.target_points = target->size();
-  XyzCloud aligned;
-  const Eigen::Matrix4f guess_f = guess.matrix().cast<float>();
   auto run = [&](auto& icp) {
-    icp.setInputSource(source);
+    configure(icp, options);
     icp.setInputTarget(target);
-    icp.setMaxCorrespondenceDistance(options.max_correspondence_m);
-    icp.setMaximumIterations(options.max_iterations);
-    icp.setTransformationEpsilon(options.transformation_epsilon);
-    icp.align(aligned, guess_f);
-    result.converged = icp.hasConverged();
+    icp.setInputSource(source);
+    align(icp, source, guess, result);
     result.fitness_m2 = icp.getFitnessScore(options.max_correspondence_m);
-    Eigen::Matrix4d M = icp.getFinalTransformation().template cast<double>();
-    // Re-orthonormalise the float rotation before it becomes an Isometry.
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = Eigen::Quaterniond(Eigen::Matrix3d(M.block<3, 3>(0, 0))).normalized().toRotationMatrix();
-    T.translation() = M.block<3, 1>(0, 3);
-    result.T_target_source = T;
   };
   if (options.backend == IcpBackend::kGeneralized) {
-    pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ> gicp;
+    Counted<Gicp> gicp;
     run(gicp);
   } else {
-    pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ> icp;
+    Counted<Icp> icp;
     run(icp);
   }
-  result.time_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  result.time_ms = ms_since(start);
   return result;
 }
 
@@ -137,16 +269,59 @@ std::vector<Eigen::Vector3f> points_in_world(const cloud::Cloud& cloud, double c
   return out;
 }
 
-Odometry::Odometry(const RegistrationOptions& options) : options_(options) {
+std::vector<Eigen::Vector3f> sensor_origins_in_world(const cloud::Cloud& cloud, double cloud_time_s,
+                                                     const Trajectory& trajectory) {
+  std::vector<Eigen::Vector3f> out(cloud.size());
+  long long cached_bin = std::numeric_limits<long long>::min();
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const long long bin = std::llround(cloud[i].t * 2000.0);  // 0.5 ms, as points_in_world
+    if (bin != cached_bin) {
+      origin = trajectory.pose_at(cloud_time_s + bin * 5e-4).translation().cast<float>();
+      cached_bin = bin;
+    }
+    out[i] = origin;
+  }
+  return out;
+}
+
+/// The local map: the last clouds in the world frame with their GICP covariances, and
+/// the aligners holding it as their target (its search tree is built once per tilt and
+/// serves both registrations of the tilt).
+struct Odometry::Impl {
+  struct MapCloud {
+    XyzCloud::Ptr points_world;
+    std::shared_ptr<Covariances> covariances_world;  ///< null for point-to-point ICP
+  };
+  std::deque<MapCloud> recent;
+  XyzCloud::Ptr map;
+  CovarianceGicp gicp;
+  Counted<Icp> icp;
+  TimedPoints first_cloud;  ///< the first tilt's centroids, until a velocity is known to de-skew them
+  bool have_first = false;
+};
+
+Odometry::Odometry(const RegistrationOptions& options) : options_(options), impl_(std::make_unique<Impl>()) {
   if (const std::string why = options.validate(); !why.empty()) {
     throw std::invalid_argument("RegistrationOptions: " + why);
   }
+  configure(impl_->gicp, options_);
+  configure(impl_->icp, options_);
 }
 
-void Odometry::rebuild_map() {
-  XyzCloud all;
-  for (const auto& c : recent_world_) all += *c;
-  local_map_ = downsample(all, options_.map_voxel_m);
+Odometry::~Odometry() = default;
+Odometry::Odometry(Odometry&&) noexcept = default;
+Odometry& Odometry::operator=(Odometry&&) noexcept = default;
+
+std::size_t Odometry::memory_bytes() const {
+  std::size_t bytes = 0;
+  for (const auto& c : impl_->recent) {
+    bytes += c.points_world->size() * sizeof(pcl::PointXYZ);
+    if (c.covariances_world) bytes += c.covariances_world->size() * sizeof(Eigen::Matrix3d);
+  }
+  if (impl_->map) bytes += impl_->map->size() * (sizeof(pcl::PointXYZ) + sizeof(Eigen::Matrix3d));
+  bytes += impl_->first_cloud.points.size() * (sizeof(Eigen::Vector3f) + sizeof(float));
+  return bytes;
 }
 
 Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
@@ -155,6 +330,9 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     throw std::invalid_argument("Odometry::add: cloud time " + std::to_string(cloud_time_s) +
                                 " s is not after the previous cloud's " + std::to_string(poses.back().time_s) + " s");
   }
+  const auto start = Clock::now();
+  Impl& m = *impl_;
+  const bool generalized = options_.backend == IcpBackend::kGeneralized;
   auto velocity_between = [](const TimedPose& a, const TimedPose& b) {
     return core::from_vector6(core::to_vector6(a.T_world_lidar.inverse() * b.T_world_lidar) / (b.time_s - a.time_s));
   };
@@ -169,14 +347,14 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   } else if (poses.size() == 1) {
     predicted = poses.back().T_world_lidar;
   }
-  auto prepare = [&](const cloud::Cloud& c, const Eigen::Isometry3d& velocity) {
-    return downsample(*deskew(c, velocity, options_.min_range_m, options_.max_range_m), options_.source_voxel_m);
-  };
-  XyzCloud::Ptr source = prepare(cloud, motion_per_s);
+  const TimedPoints centroids =
+      sensor_voxels(cloud, options_.source_voxel_m, options_.min_range_m, options_.max_range_m);
+  XyzCloud::Ptr source = deskew_points(centroids, motion_per_s);
+  std::shared_ptr<Covariances> source_covariances;
 
   Step step;
   step.T_world_lidar = predicted;
-  if (poses.size() == 1 && first_cloud_) {
+  if (poses.size() == 1 && m.have_first) {
     // Second cloud: no velocity yet, and the first cloud in the map is skewed by the very
     // motion being estimated. Iterate to the fixed point where the velocity that de-skews
     // both clouds is the one their registration measures.
@@ -184,48 +362,95 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     Eigen::Isometry3d velocity = Eigen::Isometry3d::Identity();
     for (int iteration = 0; iteration < kInitIterations; ++iteration) {
       auto map = std::make_shared<XyzCloud>();
-      pcl::transformPointCloud(*prepare(*first_cloud_, velocity), *map, first.T_world_lidar.matrix().cast<float>());
-      source = prepare(cloud, velocity);
+      pcl::transformPointCloud(*deskew_points(m.first_cloud, velocity), *map, first.T_world_lidar.matrix().cast<float>());
+      source = deskew_points(centroids, velocity);
       const RegistrationResult r = register_clouds(source, map, step.T_world_lidar, options_);
       const double change = core::translation_error_m(r.T_target_source, step.T_world_lidar);
-      step.registration.time_ms += r.time_ms;
-      step.registration.T_target_source = r.T_target_source;
-      step.registration.converged = r.converged;
-      step.registration.fitness_m2 = r.fitness_m2;
-      step.registration.source_points = r.source_points;
-      step.registration.target_points = r.target_points;
+      step.registration = r;
       step.T_world_lidar = r.T_target_source;
       velocity = velocity_between(first, {cloud_time_s, step.T_world_lidar});
       if (iteration > 0 && change < 1e-3) break;
     }
     step.registered = true;
-    recent_world_.front() = std::make_shared<XyzCloud>();
-    pcl::transformPointCloud(*prepare(*first_cloud_, velocity), *recent_world_.front(),
+    source = deskew_points(centroids, velocity);
+    auto first_world = std::make_shared<XyzCloud>();
+    pcl::transformPointCloud(*deskew_points(m.first_cloud, velocity), *first_world,
                              first.T_world_lidar.matrix().cast<float>());
-    first_cloud_.reset();
-  } else if (local_map_ && !local_map_->empty()) {
-    step.registration = register_clouds(source, local_map_, predicted, options_);
+    m.recent.front().points_world = first_world;
+    if (generalized) m.recent.front().covariances_world = m.gicp.covariances_of(first_world);
+    m.first_cloud = {};
+    m.have_first = false;
+  } else if (m.map && !m.map->empty()) {
+    auto run = [&](auto& icp, const Eigen::Isometry3d& guess, RegistrationResult& r) {
+      icp.setInputSource(source);
+      if constexpr (std::is_same_v<std::decay_t<decltype(icp)>, CovarianceGicp>) {
+        icp.setSourceCovariances(source_covariances);  // after setInputSource, which resets them
+      }
+      align(icp, source, guess, r);
+    };
+    if (generalized) source_covariances = m.gicp.covariances_of(source);
+    RegistrationResult& r = step.registration;
+    r.target_points = m.map->size();
+    generalized ? run(m.gicp, predicted, r) : run(m.icp, predicted, r);
+    const int first_iterations = r.iterations;
     step.registered = true;
-    step.T_world_lidar = step.registration.T_target_source;
     // The registration measured this cloud's motion since the previous one: de-skew with
-    // that velocity and refine once (the prediction is off whenever the cart accelerates).
-    const Eigen::Isometry3d measured = velocity_between(poses.back(), {cloud_time_s, step.T_world_lidar});
-    source = prepare(cloud, measured);
-    const RegistrationResult refined = register_clouds(source, local_map_, step.T_world_lidar, options_);
-    step.registration.T_target_source = refined.T_target_source;
-    step.registration.converged = refined.converged;
-    step.registration.fitness_m2 = refined.fitness_m2;
-    step.registration.time_ms += refined.time_ms;
-    step.T_world_lidar = refined.T_target_source;
+    // that velocity and refine (the prediction is off whenever the cart accelerates). The
+    // covariances stay: the two de-skews differ by the acceleration over one tilt, which
+    // moves neighbouring centroids alike.
+    // When the prediction was right to within refine_above_m, so was the velocity and the
+    // de-skew error is below that at the tilt's end: no second run.
+    const Eigen::Isometry3d correction = predicted.inverse() * r.T_target_source;
+    constexpr double lever_m = 10.0;  // a rotation error seen at 10 m
+    if (correction.translation().norm() + lever_m * Eigen::AngleAxisd(correction.linear()).angle() >
+        options_.refine_above_m) {
+      const Eigen::Isometry3d measured = velocity_between(poses.back(), {cloud_time_s, r.T_target_source});
+      source = deskew_points(centroids, measured);
+      generalized ? run(m.gicp, r.T_target_source, r) : run(m.icp, r.T_target_source, r);
+      r.iterations += first_iterations;
+    }
+    r.fitness_m2 = generalized ? m.gicp.getFitnessScore(options_.max_correspondence_m)
+                               : m.icp.getFitnessScore(options_.max_correspondence_m);
+    step.T_world_lidar = r.T_target_source;
   }
   trajectory_.push_back({cloud_time_s, step.T_world_lidar});
 
-  auto world = std::make_shared<XyzCloud>();
-  pcl::transformPointCloud(*source, *world, step.T_world_lidar.matrix().cast<float>());
-  recent_world_.push_back(world);
-  if (poses.size() == 1) first_cloud_ = std::make_shared<cloud::Cloud>(cloud);
-  while (static_cast<int>(recent_world_.size()) > options_.local_map_clouds) recent_world_.pop_front();
-  rebuild_map();
+  // The cloud joins the local map in the world frame, its covariances rotated with it.
+  Impl::MapCloud entry;
+  entry.points_world = std::make_shared<XyzCloud>();
+  pcl::transformPointCloud(*source, *entry.points_world, step.T_world_lidar.matrix().cast<float>());
+  if (generalized && poses.size() > 1) {
+    if (!source_covariances) source_covariances = m.gicp.covariances_of(source);
+    const Eigen::Matrix3d R = step.T_world_lidar.linear();
+    entry.covariances_world = std::make_shared<Covariances>(source_covariances->size());
+    for (std::size_t i = 0; i < source_covariances->size(); ++i) {
+      (*entry.covariances_world)[i] = R * (*source_covariances)[i] * R.transpose();
+    }
+  }
+  m.recent.push_back(entry);
+  if (poses.size() == 1) {
+    m.first_cloud = centroids;
+    m.have_first = true;
+  }
+  while (static_cast<int>(m.recent.size()) > options_.local_map_clouds) m.recent.pop_front();
+
+  if (poses.size() >= 2) {
+    // Rebuild the target: concatenation, no new covariances; the search tree is rebuilt
+    // once, on the next alignment.
+    m.map = std::make_shared<XyzCloud>();
+    auto covariances = std::make_shared<Covariances>();
+    for (const auto& c : m.recent) {
+      *m.map += *c.points_world;
+      if (generalized) covariances->insert(covariances->end(), c.covariances_world->begin(), c.covariances_world->end());
+    }
+    if (generalized) {
+      m.gicp.setInputTarget(m.map);
+      m.gicp.setTargetCovariances(covariances);  // after setInputTarget, which resets them
+    } else {
+      m.icp.setInputTarget(m.map);
+    }
+  }
+  step.registration.time_ms = ms_since(start);
   return step;
 }
 

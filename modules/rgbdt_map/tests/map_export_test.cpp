@@ -194,6 +194,57 @@ TEST(Export, PointsBeyondTheFreeSpaceRangeAreOccupiedWithoutCarving) {
   EXPECT_EQ(tree.search(3.5, 0.01, 0.01), nullptr);  // beyond the carving range: unknown
 }
 
+// A tilt's rays start where the sensor was when each point was measured: two points on
+// a wall at x = 4 m seen from y = -1 and y = +1 carve their own rays, and nothing between.
+TEST(Export, PerPointOriginsCastEachRayFromWhereTheSensorWas) {
+  OccupancyOptions options;
+  options.free_space_cell_m = 0.0;  // leaf by leaf, so the free cells are exactly the rays'
+  OccupancyMapBuilder builder(options);
+  const std::vector<Eigen::Vector3f> points = {{4.0f, -1.0f, 0.0f}, {4.0f, 1.0f, 0.0f}};
+  const std::vector<Eigen::Vector3f> origins = {{0.0f, -1.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
+  builder.insert_scan(points, origins);
+  octomap::OcTree& tree = builder.tree();
+  for (const float y : {-1.0f, 1.0f}) {
+    const auto* hit = tree.search(4.01, y + 0.01, 0.01);
+    ASSERT_NE(hit, nullptr);
+    EXPECT_TRUE(tree.isNodeOccupied(hit));
+    const auto* on_ray = tree.search(2.01, y + 0.01, 0.01);
+    ASSERT_NE(on_ray, nullptr);
+    EXPECT_FALSE(tree.isNodeOccupied(on_ray));
+  }
+  EXPECT_EQ(tree.search(2.01, 0.01, 0.01), nullptr);  // no ray from the origin (0, 0, 0)
+  EXPECT_THROW(builder.insert_scan(points, std::vector<Eigen::Vector3f>(1)), std::invalid_argument);
+}
+
+// The default writes free space in 20 cm cells where no surface is known: the same wall
+// as above gives the same occupied cells as leaf-by-leaf carving, known free space in
+// front of it, and stays unknown behind it.
+TEST(Export, CoarseFreeSpaceKeepsSurfacesAndLeavesBehindThemUnknown) {
+  std::vector<Eigen::Vector3f> wall;
+  for (float y = -1.0f; y <= 1.0f; y += 0.02f) {
+    for (float z = -0.5f; z <= 0.5f; z += 0.02f) wall.emplace_back(4.0f, y, z);
+  }
+  OccupancyOptions exact;
+  exact.free_space_cell_m = 0.0;
+  OccupancyMapBuilder fine(exact), coarse;
+  fine.insert_scan(wall, Eigen::Vector3d::Zero());
+  coarse.insert_scan(wall, Eigen::Vector3d::Zero());
+  std::size_t occupied_fine = 0, occupied_coarse = 0;
+  for (auto it = fine.tree().begin_leafs(); it != fine.tree().end_leafs(); ++it) {
+    if (fine.tree().isNodeOccupied(*it)) occupied_fine += std::size_t{1} << (3 * (16 - it.getDepth()));
+  }
+  for (auto it = coarse.tree().begin_leafs(); it != coarse.tree().end_leafs(); ++it) {
+    if (coarse.tree().isNodeOccupied(*it)) occupied_coarse += std::size_t{1} << (3 * (16 - it.getDepth()));
+  }
+  EXPECT_EQ(occupied_coarse, occupied_fine);
+  EXPECT_GT(occupied_coarse, 500u);
+  EXPECT_LT(coarse.tree().size(), fine.tree().size());  // the point of coarse cells
+  const auto* between = coarse.tree().search(2.0, 0.1, 0.1);
+  ASSERT_NE(between, nullptr);
+  EXPECT_FALSE(coarse.tree().isNodeOccupied(between));
+  EXPECT_EQ(coarse.tree().search(4.3, 0.1, 0.1), nullptr);
+}
+
 TEST(Export, ColorOcTreeWriteThenReadRoundTrips) {
   const auto dir = temp_dir();
   const auto points = sample_points();

@@ -48,28 +48,51 @@ struct OccupancyOptions {
   /// this removes most rays; free space is then exact except within this distance of
   /// surfaces. <= resolution_m: one ray per end cell. [m]
   double free_space_voxel_m = 0.25;
+  /// Free space is written in octree cells of this size (rounded down to resolution_m
+  /// times a power of two, at most 16x) wherever the tree knows no surface inside the cell
+  /// (no finer detail, this scan's end points included); elsewhere leaf by leaf, exactly.
+  /// At 5 cm leaves, 20 cm cells hold 64x fewer free nodes: a 10 M-point session fits in
+  /// memory, and the free space between rays has no holes. The price: where a surface
+  /// has not been seen yet, up to one such cell behind it may be marked free.
+  /// <= resolution_m: every free cell at resolution_m (octomap's insertPointCloud). [m]
+  double free_space_cell_m = 0.2;
   double prob_hit = 0.7;       ///< octomap sensor model (its defaults)
   double prob_miss = 0.4;
   std::string validate() const;
 };
 
 /// Occupancy octree built scan by scan: every point casts a ray from the sensor origin
-/// that marks the cells it crosses free and its end cell occupied (octomap's
-/// insertPointCloud, with points discretised to one ray per end cell, which is octomap's
-/// fast path and changes nothing at the map's resolution). Inner nodes are updated once,
-/// when the tree is written or tree() is asked for.
+/// that marks the cells it crosses free (see free_space_cell_m) and its end cell
+/// occupied. Each call is one batch,
+/// with octomap's insertPointCloud semantics (every cell updated once per batch; a cell
+/// both crossed and hit is occupied; rays deduplicated per end cell as its `discretize`),
+/// applied in octree order so that consecutive updates share their path from the root.
+/// Inner nodes are updated once, when the tree is written or tree() is asked for.
 class OccupancyMapBuilder {
  public:
   explicit OccupancyMapBuilder(const OccupancyOptions& options = {});
+  /// One scan seen from one sensor origin (world frame) [m].
   void insert_scan(const std::vector<Eigen::Vector3f>& points_world, const Eigen::Vector3d& sensor_origin_world);
+  /// One tilt in one batch, each point's ray cast from where the sensor was when it was
+  /// measured (one origin per point, see sensor_origins_in_world in registration.hpp).
+  /// Throws std::invalid_argument if the sizes differ.
+  void insert_scan(const std::vector<Eigen::Vector3f>& points_world,
+                   const std::vector<Eigen::Vector3f>& sensor_origins_world);
   octomap::OcTree& tree();
   /// Writes the maximum-likelihood binary tree (.bt).
   void write_bt(const std::string& path);
 
  private:
+  template <typename OriginOf>
+  void insert_rays(const std::vector<Eigen::Vector3f>& points_world, OriginOf&& origin_of);
+
   OccupancyOptions options_;
   std::unique_ptr<octomap::OcTree> tree_;
   bool inner_nodes_stale_ = false;
+  // Reused between batches (a tilt casts ~10^6 ray cells).
+  std::vector<std::uint64_t> occupied_codes_, free_codes_, merged_codes_, scratch_;
+  int free_space_levels_up_ = 0;     ///< free space is written this many levels above the leaves
+  std::size_t nodes_after_prune_ = 1 << 16;  ///< octree size after the last prune (grows 2x before the next)
 };
 
 /// ColorOcTree of the map's coloured voxels (occupied, mean colour) as a full .ot file.
