@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "rgbdt/core/transform.hpp"
 #include "rgbdt/rgbdt_map/colorize.hpp"
@@ -191,6 +192,26 @@ TEST(Colorize, MotionCompensationKeepsColoursRightOnAMovingCart) {
   EXPECT_EQ(fraction_wrong(&trajectory), 0.0);
   // Without it, the 0.7 m the cart covers between points and image smear colours.
   EXPECT_GT(fraction_wrong(nullptr), 0.3);
+}
+
+// A Planck radiometry has no temperature for counts at or below its offset (NaN in the
+// LUT): such points are visible but must not carry a temperature, and say why.
+TEST(Colorize, CountsWithoutATemperatureLeavePointsUncoloured) {
+  const test::Scene scene = test::box_wall_scene();
+  const Rig rig = make_rig();
+  const cloud::Cloud cloud = test::scan_tilt(scene, {});
+  const test::RenderedView view = test::render(scene, rig.thermal.camera, rig.T_lidar_thermal, kKelvinPerCount);
+  const CameraProjection proj = project_with_occlusion(cloud, true, 0.0, rig.thermal, 0.0, nullptr);
+  ASSERT_GT(proj.visible, 1000u);
+  const Temperatures all = sample_temperature(proj, view.counts, linear_thermal_lut(kKelvinPerCount, 0.0));
+  EXPECT_EQ(all.colored, proj.visible);
+  const Temperatures none =
+      sample_temperature(proj, view.counts, std::vector<float>(65536, std::numeric_limits<float>::quiet_NaN()));
+  EXPECT_EQ(none.colored, 0u);
+  EXPECT_EQ(static_cast<std::size_t>(std::count(none.status.begin(), none.status.end(), ColorStatus::kNoTemperature)),
+            proj.visible);
+  for (const float t : none.temperature_k) EXPECT_TRUE(std::isnan(t));
+  EXPECT_EQ(std::string(to_string(ColorStatus::kNoTemperature)), "no_temperature");
 }
 
 TEST(Colorize, CloudWithoutRingsFallsBackToPointSplats) {
