@@ -106,9 +106,10 @@ TEST(Colorize, OccludedWallPointsBehindBoxStayUncolored) {
   EXPECT_EQ(hidden_colored, 0) << "of " << hidden << " hidden points";
   EXPECT_EQ(behind, behind_flagged);
   EXPECT_GT(behind, 0);
-  // Conservative edges drop the first samples behind each depth edge; everything else
-  // visible is coloured.
-  EXPECT_GT(visible_colored, 0.95 * visible_in_image) << visible_colored << " / " << visible_in_image;
+  // Edges occlude only with the box's largest possible extent (up to the LIDAR's next
+  // rays), so wall samples the camera sees beside the box keep their colour: measured
+  // 99.3 % of the visible points coloured; 98 % leaves room for the rasterisation margin.
+  EXPECT_GT(visible_colored, 0.98 * visible_in_image) << visible_colored << " / " << visible_in_image;
   RecordProperty("colored_fraction_of_visible", std::to_string(double(visible_colored) / visible_in_image));
   EXPECT_GT(checked, 5000);
   EXPECT_EQ(bad_color, 0) << "of " << checked;
@@ -272,7 +273,7 @@ TEST(Colorize, StructuredYardColoursAlmostAllVisiblePoints) {
   }
   RecordProperty("colored_fraction_of_visible", std::to_string(double(visible_colored) / visible));
   RecordProperty("hidden", std::to_string(hidden) + " colored " + std::to_string(hidden_colored));
-  // The mapping target: > 95 % of the points in view coloured.
+  // The mapping target: > 95 % of the points in view coloured (measured 99.0 %).
   EXPECT_GT(visible_colored, 0.95 * visible) << visible_colored << " / " << visible;
   // With 1 cm range noise the mesh's edges jitter by a noise sigma, so a hidden point right
   // at an edge can slip through (measured: 2 of 127); the noiseless box-and-wall tests
