@@ -1,8 +1,10 @@
 // rgbdt_mapper: RGB-Depth-Thermal map of a mapping session (paper Sec. 5).
 //
-//   rgbdt_mapper SESSION --calib DIR --out OUT [--resolution 0.05]
+//   rgbdt_mapper SESSION --calib DIR --out OUT [--resolution 0.05] [--lidar auto|rawlog|clouds]
 //
-// Registers the session's tilt clouds into a trajectory (GICP against a local map),
+// Reads the LIDAR from the session's raw MRPT rawlog through tilt_lidar's Assembler (one
+// cloud per tilt) when the session has one and its tilt_rig.yaml, else from the assembled
+// PCD index. Registers the tilt clouds into a trajectory (GICP against a local map),
 // colours every point from the RGB and thermal frames nearest in time (motion compensated,
 // occlusion aware), accumulates a voxel map and writes:
 //   OUT/map.ply map.pcd                 coloured points with temperature [K]
@@ -10,12 +12,14 @@
 //   OUT/map_rgb.ot map_thermal.ot       ColorOcTree and ThermalOcTree
 //   OUT/trajectory.csv                  time_s,x,y,z,qx,qy,qz,qw of T_world_lidar
 //   OUT/render_{rgb,thermal}_{top,perspective}.png
-//   OUT/summary.json                    counts, coloured fractions, stage times, trajectory error
+//   OUT/summary.json                    counts, coloured fractions, stage times, trajectory error,
+//                                       thermal error against ground truth (simulated sessions)
 #include <CLI/CLI.hpp>
 #include <yaml-cpp/yaml.h>
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -40,6 +44,9 @@
 #include "rgbdt/rgbdt_map/render.hpp"
 #include "rgbdt/rgbdt_map/trajectory.hpp"
 #include "rgbdt/rgbdt_map/voxel_map.hpp"
+#include "rgbdt/thermal_camera/radiometry.hpp"
+#include "rgbdt/tilt_lidar/assembler.hpp"
+#include "rgbdt/tilt_lidar/rawlog_io.hpp"
 
 namespace fs = std::filesystem;
 using namespace rgbdt;
@@ -74,24 +81,129 @@ struct Camera {
   }
 };
 
-std::vector<float> thermal_lut(const core::CameraEntry& entry, const std::string& session) {
+/// Counts -> kelvin of the session's radiometry entry (thermal_camera::Radiometry: linear
+/// TLinear or Planck with emissivity and reflected temperature).
+thermal_camera::Radiometry thermal_radiometry(const core::CameraEntry& entry, const std::string& session,
+                                              const std::string& camera) {
   if (!entry.radiometry) {
-    throw core::Error(session, "camera 'thermal' has no radiometry (expected radiometry: {type: linear, "
-                               "kelvin_per_count: K, offset_k: K})");
+    throw core::Error(session, "camera '" + camera + "' has no radiometry (expected radiometry: {type: linear, "
+                               "kelvin_per_count: K, offset_k: K} or {type: planck, R, B, F, O, ...})");
   }
-  const core::RadiometrySpec& spec = *entry.radiometry;
-  if (spec.type != "linear") {
-    throw core::Error(session, "thermal radiometry type '" + spec.type + "' is not supported by rgbdt_mapper yet "
-                               "(expected 'linear')");
+  try {
+    return thermal_camera::Radiometry(*entry.radiometry);
+  } catch (const std::invalid_argument& e) {
+    throw core::Error(session, "camera '" + camera + "' radiometry: " + e.what());
   }
-  auto parameter = [&](const std::string& key, std::optional<double> fallback) {
-    const auto it = spec.parameters.find(key);
-    if (it != spec.parameters.end()) return it->second;
-    if (fallback) return *fallback;
-    throw core::Error(session, "linear radiometry lacks '" + key + "'");
-  };
-  return linear_thermal_lut(parameter("kelvin_per_count", std::nullopt), parameter("offset_k", 0.0));
 }
+
+/// One tilt cloud of the session: read from its PCD when needed, or kept in memory after
+/// the rawlog was assembled.
+struct TiltSource {
+  double time_s = 0.0;  ///< time of the cloud's first point (its t = 0)
+  std::string file;     ///< PCD, or empty when `cloud` holds the points
+  cloud::Cloud::Ptr cloud;
+
+  cloud::LoadedCloud load() const {
+    if (cloud) return cloud::LoadedCloud{cloud, true, true, true};
+    return cloud::load_pcd(file);
+  }
+};
+
+/// Replays the raw stream through tilt_lidar's Assembler. Tilts with fewer scan lines than
+/// 80 % of the median (the stream's cut-off ends) are dropped, like the PCD index does.
+std::vector<TiltSource> assemble_rawlog(const core::MappingSession& session, std::string* report) {
+  const core::TiltRig rig = core::read_tilt_rig(session.lidar.rig);
+  tilt_lidar::Assembler assembler(rig);
+  std::vector<tilt_lidar::TiltCloud> tilts;
+  const tilt_lidar::ReplayResult replay =
+      tilt_lidar::replay_rawlog(session.lidar.rawlog, assembler, [&](tilt_lidar::TiltCloud&& tilt) {
+        tilt.spherical.clear();
+        tilt.spherical.shrink_to_fit();
+        tilts.push_back(std::move(tilt));
+      });
+  if (replay.truncated) core::log_warning(session.lidar.rawlog, ": ", replay.error, " (using what was read)");
+  std::vector<int> scans;
+  for (const auto& t : tilts) scans.push_back(t.stats.scans);
+  int median = 0;
+  if (!scans.empty()) {
+    std::nth_element(scans.begin(), scans.begin() + scans.size() / 2, scans.end());
+    median = scans[scans.size() / 2];
+  }
+  std::vector<TiltSource> out;
+  for (auto& t : tilts) {
+    if (!t.cloud || t.cloud->empty() || t.stats.scans < 0.8 * median) continue;
+    out.push_back({t.start_time_s, "", t.cloud});
+  }
+  const tilt_lidar::AssemblerStats& st = assembler.stats();
+  std::ostringstream os;
+  os << "{\"scans\": " << st.scans << ", \"encoder_samples\": " << st.encoder_samples << ", \"points\": " << st.points
+     << ", \"tilts\": " << tilts.size() << ", \"tilts_used\": " << out.size()
+     << ", \"dropped_gap\": " << st.dropped_gap << ", \"dropped_no_encoder\": " << st.dropped_no_encoder
+     << ", \"truncated\": " << (replay.truncated ? "true" : "false") << "}";
+  *report = os.str();
+  return out;
+}
+
+/// Simulated sessions' true apparent temperature of every LIDAR beam (ground_truth.yaml
+/// beam_temperature: a 16-bit image, row = scan, column = beam).
+class BeamTemperatureTruth {
+ public:
+  static std::optional<BeamTemperatureTruth> load(const std::string& session_dir) {
+    const fs::path yaml = fs::path(session_dir) / "ground_truth.yaml";
+    if (!fs::exists(yaml)) return std::nullopt;
+    const YAML::Node node = YAML::LoadFile(yaml.string())["beam_temperature"];
+    if (!node) return std::nullopt;
+    BeamTemperatureTruth truth;
+    fs::path image = node["image"].as<std::string>();
+    if (image.is_relative()) image = fs::path(session_dir) / image;
+    truth.units_ = cv::imread(image.string(), cv::IMREAD_UNCHANGED);
+    if (truth.units_.type() != CV_16UC1) {
+      throw core::Error(image.string(), "expected a 16-bit single-channel PNG of beam temperatures");
+    }
+    truth.kelvin_per_unit_ = node["kelvin_per_unit"].as<double>();
+    truth.first_scan_s_ = node["first_scan_time_s"].as<double>();
+    truth.scan_period_s_ = node["scan_period_s"].as<double>();
+    truth.beam_period_s_ = truth.scan_period_s_ / node["steps_per_revolution"].as<int>();
+    return truth;
+  }
+  /// True temperature [K] of the beam measured at time_s, NaN if unknown.
+  double kelvin_at(double time_s) const {
+    const double since = time_s - first_scan_s_;
+    // A UTM-30LX scan's 1081 beams take 3/4 of the scan period, so a beam time sits at
+    // least 1/4 period before the next scan: the 0.1 margin absorbs time rounding.
+    const long scan = static_cast<long>(std::floor(since / scan_period_s_ + 0.1));
+    const long beam = std::lround((since - scan * scan_period_s_) / beam_period_s_);
+    if (scan < 0 || scan >= units_.rows || beam < 0 || beam >= units_.cols) return NAN;
+    const std::uint16_t v = units_.at<std::uint16_t>(static_cast<int>(scan), static_cast<int>(beam));
+    return v == 0 ? NAN : v * kelvin_per_unit_;
+  }
+
+ private:
+  cv::Mat units_;
+  double kelvin_per_unit_ = 0.01, first_scan_s_ = 0.0, scan_period_s_ = 0.025, beam_period_s_ = 0.025 / 1440;
+};
+
+/// Absolute errors of coloured points' temperatures against the truth.
+struct ThermalErrors {
+  std::vector<float> error_k;
+  std::size_t without_truth = 0;
+  std::string json() const {
+    if (error_k.empty()) return "null";
+    std::vector<float> e = error_k;
+    double sum = 0.0;
+    for (const float v : e) sum += v;
+    auto quantile = [&e](double q) {
+      const auto at = e.begin() + static_cast<long>(q * static_cast<double>(e.size() - 1));
+      std::nth_element(e.begin(), at, e.end());
+      return static_cast<double>(*at);
+    };
+    std::ostringstream os;
+    os << std::setprecision(4) << "{\"mean\": " << sum / e.size() << ", \"median\": " << quantile(0.5)
+       << ", \"p95\": " << quantile(0.95) << ", \"points\": " << e.size()
+       << ", \"points_without_truth\": " << without_truth << "}";
+    return os.str();
+  }
+};
 
 /// The trajectory of ground_truth.yaml (simulated sessions), if any.
 std::optional<Trajectory> ground_truth_trajectory(const std::string& session_dir) {
@@ -116,11 +228,14 @@ std::string json_number(double v) {
 int main(int argc, char** argv) {
   CLI::App app{
       "rgbdt_mapper: builds an RGB-Depth-Thermal map from a mapping session.\n"
-      "Registers the tilt clouds (GICP), colours each point from the RGB and thermal frames\n"
-      "nearest in time (motion compensated; points the camera cannot see stay uncoloured),\n"
-      "and writes map.ply, map.pcd, map.bt, map_rgb.ot, map_thermal.ot, trajectory.csv,\n"
-      "PNG renders and summary.json into OUT."};
-  std::string session_path, calib_dir, out_dir, backend = "gicp";
+      "Reads the LIDAR from the session's MRPT rawlog (assembled per tilt) or its PCD index,\n"
+      "registers the tilt clouds (GICP), colours each point from the RGB and thermal frames\n"
+      "nearest in time (motion compensated; points the camera cannot see stay uncoloured;\n"
+      "counts -> kelvin through the session's radiometry), and writes map.ply, map.pcd,\n"
+      "map.bt, map_rgb.ot, map_thermal.ot, trajectory.csv, PNG renders and summary.json into\n"
+      "OUT. For simulated sessions summary.json also scores the trajectory and the thermal\n"
+      "colouring against the ground truth."};
+  std::string session_path, calib_dir, out_dir, backend = "gicp", lidar_source = "auto";
   double resolution_m = 0.05;
   int max_clouds = 0;
   app.add_option("session", session_path, "mapping session folder (or its session.yaml)")->required();
@@ -130,6 +245,10 @@ int main(int argc, char** argv) {
   app.add_option("--resolution", resolution_m, "map voxel and octree resolution [m]")->check(CLI::PositiveNumber);
   app.add_option("--icp", backend, "registration back-end: gicp or icp")->check(CLI::IsMember({"gicp", "icp"}));
   app.add_option("--max-clouds", max_clouds, "map only the first N clouds (0: all)");
+  app.add_option("--lidar", lidar_source,
+                 "LIDAR input: rawlog (lidar.rawlog + tilt_rig.yaml through the assembler), clouds (the "
+                 "PCD index), or auto (rawlog when the session has both, else clouds)")
+      ->check(CLI::IsMember({"auto", "rawlog", "clouds"}));
   CLI11_PARSE(app, argc, argv);
   core::set_log_sink(core::stderr_log_sink);
   core::set_log_level(core::LogLevel::kWarning);
@@ -138,16 +257,40 @@ int main(int argc, char** argv) {
     const auto t_start = Clock::now();
     std::map<std::string, double> stage_s;
     const core::MappingSession session = core::read_mapping_session(session_path);
-    if (session.lidar.clouds.empty()) {
-      throw core::Error(session.directory, "lidar has no 'clouds' index; rgbdt_mapper reads assembled clouds "
-                                           "(lidar: {clouds: clouds/index.csv})");
+    const bool has_rawlog = !session.lidar.rawlog.empty() && !session.lidar.rig.empty();
+    if (lidar_source == "auto") lidar_source = has_rawlog ? "rawlog" : "clouds";
+    std::vector<TiltSource> clouds;
+    std::string assembler_json = "null";
+    auto t0 = Clock::now();
+    if (lidar_source == "rawlog") {
+      if (!has_rawlog) {
+        throw core::Error(session.directory, "--lidar rawlog needs lidar: {rawlog: FILE, rig: tilt_rig.yaml}");
+      }
+      std::printf("rgbdt_mapper: assembling %s\n", session.lidar.rawlog.c_str());
+      std::fflush(stdout);
+      clouds = assemble_rawlog(session, &assembler_json);
+    } else {
+      if (session.lidar.clouds.empty()) {
+        throw core::Error(session.directory, "lidar has neither a rawlog with its rig nor a 'clouds' index "
+                                             "(expected lidar: {rawlog: lidar.rawlog, rig: tilt_rig.yaml} or "
+                                             "{clouds: clouds/index.csv})");
+      }
+      for (const core::TimedFile& f : core::read_time_index(session.lidar.clouds)) {
+        clouds.push_back({f.time_s, f.file, nullptr});
+      }
     }
-    std::vector<core::TimedFile> clouds = core::read_time_index(session.lidar.clouds);
+    stage_s["lidar_input"] = seconds_since(t0);
     if (max_clouds > 0 && static_cast<int>(clouds.size()) > max_clouds) clouds.resize(max_clouds);
-    if (clouds.size() < 2) throw core::Error(session.lidar.clouds, "needs at least 2 clouds");
+    if (clouds.size() < 2) {
+      throw core::Error(lidar_source == "rawlog" ? session.lidar.rawlog : session.lidar.clouds,
+                        "needs at least 2 tilt clouds, found " + std::to_string(clouds.size()));
+    }
+    const std::optional<BeamTemperatureTruth> temperature_truth = BeamTemperatureTruth::load(session.directory);
+    ThermalErrors thermal_errors;
 
     std::vector<Camera> cameras;
     std::vector<float> lut_k;
+    std::string radiometry_text;
     for (const auto& [name, entry] : session.cameras) {
       Camera camera(name, MappedCamera{core::PinholeCamera(core::read_camera_info(entry.intrinsics)),
                                        Eigen::Isometry3d::Identity()});
@@ -155,23 +298,28 @@ int main(int argc, char** argv) {
       camera.mapped.T_camera_lidar = core::read_extrinsics(extrinsics.string()).T_parent_child;
       camera.frames = core::read_time_index(entry.frames);
       camera.thermal = name == "thermal" || entry.radiometry.has_value();
-      if (camera.thermal) lut_k = thermal_lut(entry, session.directory);
+      if (camera.thermal) {
+        const thermal_camera::Radiometry radiometry = thermal_radiometry(entry, session.directory, name);
+        lut_k = radiometry.lookup_table();
+        radiometry_text = radiometry.describe();
+      }
       cameras.push_back(std::move(camera));
     }
     fs::create_directories(out_dir);
-    std::printf("rgbdt_mapper: %zu clouds, cameras:", clouds.size());
+    std::printf("rgbdt_mapper: %zu clouds (%s), cameras:", clouds.size(), lidar_source.c_str());
     for (const auto& c : cameras) std::printf(" %s (%zu frames)", c.name.c_str(), c.frames.size());
+    if (!radiometry_text.empty()) std::printf("; thermal radiometry %s", radiometry_text.c_str());
     std::printf("\n");
 
     // Stage 1: registration.
     RegistrationOptions reg_options;
     reg_options.backend = icp_backend_from_string(backend);
     Odometry odometry(reg_options);
-    auto t0 = Clock::now();
+    t0 = Clock::now();
     std::size_t total_points = 0;
     double icp_ms = 0.0;
     for (std::size_t k = 0; k < clouds.size(); ++k) {
-      const cloud::LoadedCloud loaded = cloud::load_pcd(clouds[k].file);
+      const cloud::LoadedCloud loaded = clouds[k].load();
       total_points += loaded.cloud->size();
       const Odometry::Step step = odometry.add(*loaded.cloud, clouds[k].time_s);
       icp_ms += step.registration.time_ms;
@@ -196,7 +344,7 @@ int main(int argc, char** argv) {
     OccupancyMapBuilder occupancy(occupancy_options);
     double colorize_s = 0.0, occupancy_s = 0.0;
     for (std::size_t k = 0; k < clouds.size(); ++k) {
-      const cloud::LoadedCloud loaded = cloud::load_pcd(clouds[k].file);
+      const cloud::LoadedCloud loaded = clouds[k].load();
       const cloud::Cloud& cloud = *loaded.cloud;
       float t_max = 0.0f;
       for (const auto& p : cloud) t_max = std::max(t_max, p.t);
@@ -218,6 +366,17 @@ int main(int argc, char** argv) {
         if (camera.thermal) {
           temps = sample_temperature(projection, camera.load(file.file), lut_k);
           camera.colored += temps->colored;
+          if (temperature_truth) {
+            for (std::size_t i = 0; i < cloud.size(); ++i) {
+              if (temps->status[i] != ColorStatus::kColored) continue;
+              const double truth = temperature_truth->kelvin_at(clouds[k].time_s + cloud[i].t);
+              if (std::isnan(truth)) {
+                ++thermal_errors.without_truth;
+              } else {
+                thermal_errors.error_k.push_back(static_cast<float>(std::abs(temps->temperature_k[i] - truth)));
+              }
+            }
+          }
         } else if (!rgb) {
           rgb = sample_rgb(projection, camera.load(file.file));
           camera.colored += rgb->colored;
@@ -296,6 +455,9 @@ int main(int argc, char** argv) {
     }
     json << ",\n  \"colored_fraction\": " << json_number(rgb_fraction);
     json << ",\n  \"trajectory_rmse_m\": " << (rmse ? json_number(*rmse) : "null");
+    json << ",\n  \"thermal_error_k\": " << thermal_errors.json();
+    json << ",\n  \"lidar_source\": \"" << lidar_source << "\"";
+    json << ",\n  \"assembler\": " << assembler_json;
     json << ",\n  \"time_s\": {";
     bool first = true;
     for (const auto& [stage, s] : stage_s) {

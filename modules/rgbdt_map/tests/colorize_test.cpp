@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "rgbdt/core/transform.hpp"
 #include "rgbdt/rgbdt_map/colorize.hpp"
@@ -105,9 +106,10 @@ TEST(Colorize, OccludedWallPointsBehindBoxStayUncolored) {
   EXPECT_EQ(hidden_colored, 0) << "of " << hidden << " hidden points";
   EXPECT_EQ(behind, behind_flagged);
   EXPECT_GT(behind, 0);
-  // Conservative edges drop the first samples behind each depth edge; everything else
-  // visible is coloured.
-  EXPECT_GT(visible_colored, 0.95 * visible_in_image) << visible_colored << " / " << visible_in_image;
+  // Edges occlude only with the box's largest possible extent (up to the LIDAR's next
+  // rays), so wall samples the camera sees beside the box keep their colour: measured
+  // 99.3 % of the visible points coloured; 98 % leaves room for the rasterisation margin.
+  EXPECT_GT(visible_colored, 0.98 * visible_in_image) << visible_colored << " / " << visible_in_image;
   RecordProperty("colored_fraction_of_visible", std::to_string(double(visible_colored) / visible_in_image));
   EXPECT_GT(checked, 5000);
   EXPECT_EQ(bad_color, 0) << "of " << checked;
@@ -193,6 +195,26 @@ TEST(Colorize, MotionCompensationKeepsColoursRightOnAMovingCart) {
   EXPECT_GT(fraction_wrong(nullptr), 0.3);
 }
 
+// A Planck radiometry has no temperature for counts at or below its offset (NaN in the
+// LUT): such points are visible but must not carry a temperature, and say why.
+TEST(Colorize, CountsWithoutATemperatureLeavePointsUncoloured) {
+  const test::Scene scene = test::box_wall_scene();
+  const Rig rig = make_rig();
+  const cloud::Cloud cloud = test::scan_tilt(scene, {});
+  const test::RenderedView view = test::render(scene, rig.thermal.camera, rig.T_lidar_thermal, kKelvinPerCount);
+  const CameraProjection proj = project_with_occlusion(cloud, true, 0.0, rig.thermal, 0.0, nullptr);
+  ASSERT_GT(proj.visible, 1000u);
+  const Temperatures all = sample_temperature(proj, view.counts, linear_thermal_lut(kKelvinPerCount, 0.0));
+  EXPECT_EQ(all.colored, proj.visible);
+  const Temperatures none =
+      sample_temperature(proj, view.counts, std::vector<float>(65536, std::numeric_limits<float>::quiet_NaN()));
+  EXPECT_EQ(none.colored, 0u);
+  EXPECT_EQ(static_cast<std::size_t>(std::count(none.status.begin(), none.status.end(), ColorStatus::kNoTemperature)),
+            proj.visible);
+  for (const float t : none.temperature_k) EXPECT_TRUE(std::isnan(t));
+  EXPECT_EQ(std::string(to_string(ColorStatus::kNoTemperature)), "no_temperature");
+}
+
 TEST(Colorize, CloudWithoutRingsFallsBackToPointSplats) {
   const test::Scene scene = test::box_wall_scene();
   const Rig rig = make_rig();
@@ -251,7 +273,7 @@ TEST(Colorize, StructuredYardColoursAlmostAllVisiblePoints) {
   }
   RecordProperty("colored_fraction_of_visible", std::to_string(double(visible_colored) / visible));
   RecordProperty("hidden", std::to_string(hidden) + " colored " + std::to_string(hidden_colored));
-  // The mapping target: > 95 % of the points in view coloured.
+  // The mapping target: > 95 % of the points in view coloured (measured 99.0 %).
   EXPECT_GT(visible_colored, 0.95 * visible) << visible_colored << " / " << visible;
   // With 1 cm range noise the mesh's edges jitter by a noise sigma, so a hidden point right
   // at an edge can slip through (measured: 2 of 127); the noiseless box-and-wall tests

@@ -186,6 +186,45 @@ TEST(MapperApp, MapsASimulatedSessionIntoEveryOutputFile) {
   EXPECT_EQ(trajectory.size(), 6u);
 }
 
+// The simulator's street session as recorded: the raw MRPT rawlog goes through tilt_lidar's
+// Assembler (no PCD is read), and the sim's per-beam ground truth scores the colouring.
+TEST(MapperApp, MapsARawSimulatedStreetSessionThroughTheAssembler) {
+  const char* bin = std::getenv("RGBDT_BIN_DIR");
+  ASSERT_NE(bin, nullptr) << "RGBDT_BIN_DIR is set by ctest";
+  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "MapperAppRawlog";
+  fs::remove_all(dir);
+  const std::string sim = std::string(bin) + "/rgbdt_sim mapping --out " + (dir / "session").string() +
+                          " --duration 6 --rgb-fps 2 --thermal-fps 5 --seed 1 --supersampling 1 > " +
+                          (dir.string() + "_sim.txt") + " 2>&1";
+  fs::create_directories(dir);
+  ASSERT_EQ(std::system(sim.c_str()), 0) << "see " << dir.string() << "_sim.txt";
+  // The PCD index is removed: the mapper must find its clouds in the rawlog.
+  fs::remove_all(dir / "session" / "clouds");
+  const std::string command = std::string(bin) + "/rgbdt_mapper " + (dir / "session").string() + " --calib " +
+                              (dir / "session/true_calib").string() + " --out " + (dir / "out").string() +
+                              " --resolution 0.1 > " + (dir / "log.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << "see " << (dir / "log.txt");
+  std::ifstream in(dir / "out/summary.json");
+  const std::string json((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(json.find("\"lidar_source\": \"rawlog\""), std::string::npos) << json;
+  // 6 s of 0.6 s tilts: 10 tilts, the last one cut by the end of the stream.
+  EXPECT_GE(json_value(json, "clouds"), 9) << json;
+  EXPECT_LT(json_value(json, "trajectory_rmse_m"), 0.05) << json;
+  // The mapping targets: > 95 % of the points each camera has in its image coloured, and a
+  // mean thermal error < 0.5 K on the coloured points against the sim's true apparent
+  // temperature of the surface each beam hit.
+  for (const char* camera : {"\"rgb\"", "\"thermal\""}) {
+    const auto at = json.find(camera);
+    ASSERT_NE(at, std::string::npos) << camera;
+    EXPECT_GT(json_value(json.substr(at), "colored_fraction_in_view"), 0.95) << camera << json;
+  }
+  const auto thermal_at = json.find("\"thermal_error_k\"");
+  ASSERT_NE(thermal_at, std::string::npos) << json;
+  EXPECT_LT(json_value(json.substr(thermal_at), "mean"), 0.5) << json;
+  EXPECT_GT(json_value(json.substr(thermal_at), "points"), 10000) << json;
+  RecordProperty("summary", json);
+}
+
 TEST(MapperApp, FailsWithAClearMessageOnAMissingCalibration) {
   const char* bin = std::getenv("RGBDT_BIN_DIR");
   ASSERT_NE(bin, nullptr);

@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
+
+#include "rgbdt/sim/camera_sim.hpp"
 
 namespace rgbdt::sim {
 
@@ -79,6 +82,7 @@ RawScan TiltLidarSimulator::scan(const Scene& scene, double t_scan, const PoseFu
   out.range_m.assign(static_cast<size_t>(spec.beams), 0.0f);
   out.valid.assign(static_cast<size_t>(spec.beams), 0);
   out.intensity.assign(static_cast<size_t>(spec.beams), 0.0f);
+  out.truth_temperature_k.assign(static_cast<size_t>(spec.beams), std::numeric_limits<float>::quiet_NaN());
   std::normal_distribution<double> unit(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   const double half = 0.5 * options_.beam_divergence_rad;
@@ -93,6 +97,7 @@ RawScan TiltLidarSimulator::scan(const Scene& scene, double t_scan, const PoseFu
     const double theta = spec.beam_angle(i);
     double weight_sum = 0.0, range_sum = 0.0, min_r = 1e9, max_r = -1e9;
     std::optional<Hit> centre;
+    bool one_material = true;  // every sub-ray that hit something hit the centre's material
     for (int k = 0; k < rays; ++k) {
       const double th = theta + offsets[k][0], el = offsets[k][1];
       const Eigen::Vector3d dir_scanner(std::cos(th) * std::cos(el), std::sin(th) * std::cos(el), std::sin(el));
@@ -100,6 +105,7 @@ RawScan TiltLidarSimulator::scan(const Scene& scene, double t_scan, const PoseFu
                                                      spec.range_max_m * 1.5);
       if (k == 0) centre = hit;
       if (!hit) continue;
+      if (!centre || hit->material != centre->material) one_material = false;
       const double cos_inc = std::abs(hit->normal.dot(T_world_scanner.linear() * dir_scanner));
       const double w = scene.material(hit->material).nir_reflectivity * cos_inc + 1e-9;
       weight_sum += w;
@@ -113,7 +119,13 @@ RawScan TiltLidarSimulator::scan(const Scene& scene, double t_scan, const PoseFu
     const double intensity_noise = unit(rng_);
     if (weight_sum <= 0.0) continue;
     double range = centre ? centre->distance : range_sum / weight_sum;
-    if (rays > 1 && max_r - min_r > options_.mixed_pixel_min_gap_m) range = range_sum / weight_sum;
+    const bool mixed = rays > 1 && max_r - min_r > options_.mixed_pixel_min_gap_m;
+    if (mixed) range = range_sum / weight_sum;
+    // A footprint spread in range over one material (the ground at a grazing angle) still
+    // has one true temperature; one straddling two materials has none.
+    if (centre && one_material) {
+      out.truth_temperature_k[static_cast<size_t>(i)] = static_cast<float>(apparent_temperature_k(scene, *centre));
+    }
     // Reflectivity and incidence of the surface the beam centre hit (or the footprint's).
     double signal = 0.0;
     double dropout = 0.0;

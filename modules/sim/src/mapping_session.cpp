@@ -9,6 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <opencv2/core.hpp>
+
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/core/session.hpp"
@@ -54,6 +56,26 @@ core::RadiometrySpec linear_radiometry(const ThermalCameraOptions& o) {
   r.parameters["kelvin_per_count"] = o.kelvin_per_count;
   r.parameters["offset_k"] = o.offset_k;
   return r;
+}
+
+// Ground truth per beam (see MappingSessionResult): row = scan, column = beam, value =
+// apparent temperature in units of kBeamKelvinPerUnit, 0 where the beam has no single true
+// temperature. A 16-bit PNG keeps 0.01 K over 0-655 K and compresses the piecewise
+// constant materials well.
+constexpr double kBeamKelvinPerUnit = 0.01;
+void write_beam_temperatures(const std::string& path, const core::ScannerSpec& scanner,
+                             const std::vector<RawScan>& scans) {
+  cv::Mat image(static_cast<int>(scans.size()), scanner.beams, CV_16UC1, cv::Scalar(0));
+  for (size_t k = 0; k < scans.size(); ++k) {
+    const RawScan& s = scans[k];
+    auto* row = image.ptr<std::uint16_t>(static_cast<int>(k));
+    for (int i = 0; i < scanner.beams && i < static_cast<int>(s.truth_temperature_k.size()); ++i) {
+      const float t = s.truth_temperature_k[static_cast<size_t>(i)];
+      if (!s.valid[static_cast<size_t>(i)] || !std::isfinite(t)) continue;
+      row[i] = static_cast<std::uint16_t>(std::clamp(std::lround(t / kBeamKelvinPerUnit), 1L, 65535L));
+    }
+  }
+  detail::write_png(path, image);
 }
 
 }  // namespace
@@ -143,6 +165,7 @@ MappingSessionResult write_mapping_session(const std::string& out_dir, const Map
   write_rawlog((dir / "lidar.rawlog").string(), lidar.rig.scanner, scans, encoder);
   core::write_tilt_rig((dir / "tilt_rig.yaml").string(), lidar.rig);
   result.scans = static_cast<int>(scans.size());
+  write_beam_temperatures((dir / "ground_truth" / "beam_temperature.png").string(), lidar.rig.scanner, scans);
   result.encoder_samples = static_cast<int>(encoder.size());
   const size_t per_tilt = static_cast<size_t>(std::floor(lidar.profile.tilt_duration_s / lidar.rig.scanner.scan_period_s + 1e-9));
   std::vector<core::TimedFile> cloud_index;
@@ -229,6 +252,18 @@ MappingSessionResult write_mapping_session(const std::string& out_dir, const Map
   out << YAML::BeginMap;
   detail::emit_ground_truth_header(out, rig, "tilt_rig.yaml");
   out << YAML::Key << "trajectory" << YAML::Value << "ground_truth/trajectory.csv";
+  // Scan k of the rawlog starts at first_scan_time_s + k * scan_period_s (every scan, valid
+  // or not), so a point's time finds its row and beam.
+  out << YAML::Key << "beam_temperature" << YAML::Value << YAML::BeginMap;
+  out << YAML::Key << "image" << YAML::Value << "ground_truth/beam_temperature.png";
+  out << YAML::Key << "kelvin_per_unit" << YAML::Value << kBeamKelvinPerUnit;
+  out << YAML::Key << "first_scan_time_s" << YAML::Value << (scans.empty() ? t0 : scans.front().time_s);
+  out << YAML::Key << "scan_period_s" << YAML::Value << lidar.rig.scanner.scan_period_s;
+  out << YAML::Key << "steps_per_revolution" << YAML::Value << lidar.rig.scanner.steps_per_revolution;
+  out << YAML::Key << "about" << YAML::Value
+      << "16-bit PNG, row = scan, column = beam: apparent temperature [K] / kelvin_per_unit of the surface "
+         "the beam hit; 0 = no return or a footprint on two materials (mixed pixel)";
+  out << YAML::EndMap;
   out << YAML::Key << "world" << YAML::Value
       << "street along +x, ground z = 0; trajectory.csv holds T_world_lidar (cart at ~1 m/s)";
   out << YAML::EndMap;

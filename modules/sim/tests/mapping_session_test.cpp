@@ -67,6 +67,35 @@ void session_yaml_names_every_stream_and_core_reads_it() {
   EXPECT_EQ(gt["lidar"]["rig"].as<std::string>(), "tilt_rig.yaml");
   EXPECT_EQ(gt["trajectory"].as<std::string>(), "ground_truth/trajectory.csv");
   EXPECT_TRUE(fs::exists(mapping_dir() / "true_calib" / "extrinsics_thermal.yaml"));
+
+  // Per-beam true temperatures: one row per raw scan, one column per beam; almost every
+  // valid beam has one (only mixed pixels at depth edges do not), and all are apparent
+  // temperatures of the day's materials (emissivity-weighted with a 250 K sky: 293-315 K).
+  const YAML::Node beams = gt["beam_temperature"];
+  ASSERT_TRUE(beams) << "ground_truth.yaml lacks beam_temperature";
+  const cv::Mat truth = cv::imread((mapping_dir() / beams["image"].as<std::string>()).string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(truth.type(), CV_16UC1);
+  EXPECT_EQ(truth.rows, 52);  // 1.3 s / 25 ms
+  EXPECT_EQ(truth.cols, 1081);
+  EXPECT_DOUBLE_EQ(beams["first_scan_time_s"].as<double>(), small_mapping().trajectory.start_time_s);
+  const RawlogContents raw = read_rawlog((mapping_dir() / "lidar.rawlog").string());
+  const double kelvin_per_unit = beams["kelvin_per_unit"].as<double>();
+  int valid = 0, with_truth = 0, in_range = 0;
+  for (int k = 0; k < truth.rows; ++k) {
+    for (int i = 0; i < truth.cols; ++i) {
+      const std::uint16_t v = truth.at<std::uint16_t>(k, i);
+      if (!raw.scans[static_cast<size_t>(k)].valid[static_cast<size_t>(i)]) {
+        EXPECT_EQ(v, 0) << "scan " << k << " beam " << i;
+        continue;
+      }
+      ++valid;
+      if (v == 0) continue;
+      ++with_truth;
+      in_range += v * kelvin_per_unit > 250.0 && v * kelvin_per_unit < 330.0;
+    }
+  }
+  EXPECT_GT(with_truth, 0.95 * valid) << with_truth << " of " << valid;
+  EXPECT_EQ(in_range, with_truth);
 }
 
 void rawlog_timestamps_follow_the_scan_and_encoder_rates() {

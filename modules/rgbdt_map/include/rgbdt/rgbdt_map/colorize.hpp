@@ -12,8 +12,11 @@
 ///     visible only if its depth is within a tolerance of the buffer's surface. Meshing
 ///     rather than splatting points keeps surfaces seen at grazing angles (the ground)
 ///     visible: a surface never occludes itself, however steep its depth gradient.
-/// Along depth edges the far side's first samples are left uncoloured (conservative: the
-/// LIDAR did not sample where exactly the near object ends).
+/// Along depth edges the LIDAR did not sample where exactly the near object ends: it may
+/// reach up to the next rays, which found the far surface. That largest possible extent
+/// (the edge triangle with its far vertices pulled back along their LIDAR rays to the near
+/// range) is projected into the camera and occludes; far samples behind it stay
+/// uncoloured, those the camera sees beside it (parallax) keep their colour.
 /// Points outside the image, behind the camera or occluded keep no colour and carry a
 /// status saying why; they are never painted black.
 #include <opencv2/core.hpp>
@@ -38,6 +41,7 @@ enum class ColorStatus : std::uint8_t {
   kBehindCamera,  ///< depth <= min_depth_m in the camera frame
   kOutsideImage,  ///< projects outside the image
   kOccluded,      ///< hidden from the camera by a nearer surface
+  kNoTemperature, ///< visible, but the radiometry gives no temperature for its counts
 };
 const char* to_string(ColorStatus status);
 
@@ -49,14 +53,17 @@ struct MappedCamera {
 
 struct ColorizeOptions {
   /// A point is visible when depth <= surface depth + depth_tolerance_m +
-  /// depth_tolerance_ratio * depth. The ratio absorbs the surface's depth change across a
-  /// z-buffer cell on steep (grazing) surfaces; raise both with noisy ranges.
+  /// depth_tolerance_ratio * depth + 0.71 cell * its surface's depth gradient [m/cell]
+  /// (the point lies up to 0.71 cell from the cell centre it is compared at, which matters
+  /// on steep, grazing surfaces such as the far ground). Raise both with noisy ranges.
   double depth_tolerance_m = 0.05;     ///< [m]
   double depth_tolerance_ratio = 0.03;  ///< [-]
   /// The z-buffer is the image downscaled by an integer factor so it is at most this wide;
-  /// 400 keeps a 1288 px RGB image's buffer at 322 px (cells of 4 px), enough for LIDAR
-  /// point spacings of >= 6 px and fast to rasterise.
-  int zbuffer_max_width_px = 400;
+  /// 800 keeps a 1288 px RGB image's buffer at 644 px (cells of 2 px) and a 640 px thermal
+  /// image's at full resolution. Occluding edges are drawn one margin (0.75 cell) wider,
+  /// so coarser cells cost visible points beside edges: 400 (4 px RGB cells) coloured
+  /// 97.6 % of the truly visible points of a simulated street, 800 98.2 %.
+  int zbuffer_max_width_px = 800;
   /// Timing of the 2D scanner (rgbdt/core/tilt_rig.hpp) used to find the same beam in
   /// neighbouring scan lines from the per-point time `t`.
   double scan_period_s = 0.025;     ///< [s]
@@ -64,8 +71,9 @@ struct ColorizeOptions {
   /// A mesh triangle spans a depth edge rather than a surface when its plane makes less
   /// than edge_angle_deg with the LIDAR's ray, or when its far vertex is deeper than
   /// (1 + discontinuity_ratio) times its near vertex (+ depth_tolerance_m). Edge triangles
-  /// are drawn flat at the near depth, so points just behind an edge stay uncoloured;
-  /// so do triangles the camera sees from their other side (parallax folds).
+  /// occlude with the near object's largest possible extent (see the file comment);
+  /// triangles the camera sees from their other side (parallax folds) are drawn flat at
+  /// their near depth.
   /// The ground seen at a grazing angle h / r stays a surface while that angle exceeds
   /// edge_angle_deg: with 3 deg, up to 19 m for a sensor 1 m above the ground. The ratio
   /// rule only catches what the angle misses (wide gaps between scan lines); a low ratio
@@ -117,7 +125,9 @@ struct Temperatures {
 /// Temperature of the visible points: each of the four neighbouring pixels' counts goes
 /// through `lut_k` (65536 entries, counts -> kelvin) and the results are interpolated
 /// bilinearly (interpolating temperatures, not counts, stays right for non-linear
-/// radiometry). `counts` is CV_16UC1 (raw counts) or CV_8UC1.
+/// radiometry). `counts` is CV_16UC1 (raw counts) or CV_8UC1. A point whose neighbouring
+/// counts have no temperature (NaN in the LUT: outside a Planck curve's domain) gets
+/// kNoTemperature.
 Temperatures sample_temperature(const CameraProjection& projection, const cv::Mat& counts,
                                 const std::vector<float>& lut_k);
 

@@ -64,6 +64,11 @@ struct RawScan {
   std::vector<float> range_m;      ///< 0 where invalid
   std::vector<char> valid;         ///< 1 = valid return
   std::vector<float> intensity;    ///< device units
+  /// Ground truth, not part of the scanner's output: apparent temperature [K] of the surface
+  /// the beam's centre hit (what a thermal camera sees there, apparent_temperature_k); NaN
+  /// when the beam's centre hit nothing or its footprint straddled two materials (a mixed
+  /// pixel lies between two surfaces and has no single true temperature).
+  std::vector<float> truth_temperature_k;
 };
 
 struct EncoderSample {

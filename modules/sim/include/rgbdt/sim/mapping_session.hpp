@@ -12,6 +12,10 @@
 ///   rgb/index.csv, rgb/NNNNN.png; thermal/index.csv, thermal/NNNNN.png (16-bit counts)
 ///   rgb.yaml thermal.yaml, ground_truth.yaml, true_calib/,
 ///   ground_truth/trajectory.csv   time_s,x,y,z,qx,qy,qz,qw of T_world_lidar
+///   ground_truth/beam_temperature.png   true apparent temperature of every beam's surface
+///                       (16-bit, row = scan, column = beam; ground_truth.yaml beam_temperature
+///                       gives the scale and scan timing; 0 = no return, or a footprint on two
+///                       materials), to score thermal colouring
 /// Times are seconds on one clock, starting at start_time_s.
 #include <Eigen/Geometry>
 #include <cstdint>
