@@ -20,7 +20,7 @@ namespace {
 
 fs::path temp_dir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" /
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
                        (std::string(info->test_suite_name()) + "." + info->name());
   fs::remove_all(dir);
   fs::create_directories(dir);

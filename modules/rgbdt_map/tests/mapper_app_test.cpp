@@ -132,7 +132,7 @@ double json_value(const std::string& json, const std::string& key) {
 TEST(MapperApp, MapsASimulatedSessionIntoEveryOutputFile) {
   const char* bin = std::getenv("RGBDT_BIN_DIR");
   ASSERT_NE(bin, nullptr) << "RGBDT_BIN_DIR is set by ctest";
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "MapperApp";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperApp";
   fs::remove_all(dir);
   write_session(dir / "session", 6);
   const std::string command = std::string(bin) + "/rgbdt_mapper " + (dir / "session").string() + " --calib " +
@@ -191,7 +191,7 @@ TEST(MapperApp, MapsASimulatedSessionIntoEveryOutputFile) {
 TEST(MapperApp, MapsARawSimulatedStreetSessionThroughTheAssembler) {
   const char* bin = std::getenv("RGBDT_BIN_DIR");
   ASSERT_NE(bin, nullptr) << "RGBDT_BIN_DIR is set by ctest";
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "MapperAppRawlog";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppRawlog";
   fs::remove_all(dir);
   const std::string sim = std::string(bin) + "/rgbdt_sim mapping --out " + (dir / "session").string() +
                           " --duration 6 --rgb-fps 2 --thermal-fps 5 --seed 1 --supersampling 1 > " +
@@ -228,7 +228,7 @@ TEST(MapperApp, MapsARawSimulatedStreetSessionThroughTheAssembler) {
 TEST(MapperApp, FailsWithAClearMessageOnAMissingCalibration) {
   const char* bin = std::getenv("RGBDT_BIN_DIR");
   ASSERT_NE(bin, nullptr);
-  const fs::path dir = fs::temp_directory_path() / "rgbdt_tests" / "MapperAppMissingCalib";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppMissingCalib";
   fs::remove_all(dir);
   write_session(dir / "session", 2);
   const std::string command = std::string(bin) + "/rgbdt_mapper " + (dir / "session").string() + " --calib " +

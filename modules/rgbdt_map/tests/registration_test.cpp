@@ -121,7 +121,7 @@ TEST(Trajectory, InterpolatesExtrapolatesAndRoundTripsThroughCsv) {
   // Constant velocity beyond the last pose.
   EXPECT_NEAR(core::rotation_to_rpy(trajectory.pose_at(3.0).rotation()).z(), 0.4, 1e-9);
   EXPECT_THROW(trajectory.push_back({2.0, Eigen::Isometry3d::Identity()}), std::invalid_argument);
-  const auto path = std::filesystem::temp_directory_path() / "rgbdt_tests" / "trajectory_roundtrip.csv";
+  const auto path = std::filesystem::path(RGBDT_BINARY_DIR) / "test_tmp" / "trajectory_roundtrip.csv";
   std::filesystem::create_directories(path.parent_path());
   write_trajectory_csv(path.string(), trajectory);
   const Trajectory back = read_trajectory_csv(path.string());
