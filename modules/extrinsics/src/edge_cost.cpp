@@ -7,11 +7,11 @@ namespace rgbdt::extrinsics::detail {
 void SmoothView::evaluate(double u, double v, double f[2], double J[4]) const {
   if (field.in_band(u, v)) {
     if (J == nullptr) {
-      interpolator.Evaluate(v, u, f);
+      field.interpolate(u, v, f, nullptr, nullptr);
       return;
     }
-    double df_dv[2], df_du[2];
-    interpolator.Evaluate(v, u, f, df_dv, df_du);
+    double df_du[2], df_dv[2];
+    field.interpolate(u, v, f, df_du, df_dv);
     J[0] = df_du[0];
     J[1] = df_dv[0];
     J[2] = df_du[1];

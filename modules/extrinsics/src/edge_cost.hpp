@@ -31,21 +31,21 @@ void transform_point(const T* x, const Eigen::Vector3d& p_lidar, T* p_camera) {
   p_camera[2] += x[5];
 }
 
-/// Field of one view, ready for the cost functions.
+/// Field of one view, ready for the cost functions. The ceres interpolator serves the Jet
+/// path (the autodiff reference of the tests); evaluate() uses the field's own one-pass
+/// bicubic, the same interpolant.
 struct SmoothView {
-  using Grid = ceres::Grid2D<float, 2>;
-  using Interpolator = ceres::BiCubicInterpolator<Grid>;
+  using Interpolator = ceres::BiCubicInterpolator<EdgeDistanceField::Grid>;
   SmoothView(const std::vector<Eigen::Vector2d>& edges, const EdgeFieldOptions& o)
-      : field(edges, o),
-        grid(field.data().data(), field.row_begin(), field.row_begin() + field.rows(),
-             field.col_begin(), field.col_begin() + field.cols()),
-        interpolator(grid) {}
+      : field(edges, o), grid(field.grid()), interpolator(grid) {}
+  SmoothView(const SmoothView&) = delete;  // the interpolator refers to this grid
+  SmoothView& operator=(const SmoothView&) = delete;
   /// Offset f (edge -> pixel) at (u, v) and, when J is given, df/d(u, v) (row-major 2x2):
   /// bicubic (value and exact gradient) in the band, the nearest-edge form outside it.
   void evaluate(double u, double v, double f[2], double J[4]) const;
 
   EdgeDistanceField field;
-  Grid grid;
+  EdgeDistanceField::Grid grid;  // the interpolator keeps a reference to it
   Interpolator interpolator;
 };
 

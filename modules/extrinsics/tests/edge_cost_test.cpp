@@ -97,6 +97,34 @@ TEST(ViewEdgeCost, AnalyticJacobianEqualsAutodiffInEveryBranch) {
   EXPECT_GT(total.clamped, 100);
 }
 
+TEST(EdgeDistanceField, InterpolateEqualsCeresBiCubicInterpolator) {
+  // The field's one-pass bicubic must be ceres::BiCubicInterpolator's interpolant over the
+  // same grid, value and gradient, at every in-band pixel (tile borders included).
+  const Scene s;
+  const EdgeDistanceField field(s.views[0].image_edge_points_px);
+  const EdgeDistanceField::Grid grid = field.grid();
+  const ceres::BiCubicInterpolator<EdgeDistanceField::Grid> ceres_interpolator(grid);
+  std::mt19937 rng(5);
+  const Eigen::Vector2d center(s.views[0].image_ellipses[0].center.x, s.views[0].image_ellipses[0].center.y);
+  std::uniform_real_distribution<double> offset(-200.0, 200.0);
+  int checked = 0;
+  for (int i = 0; i < 200000 && checked < 5000; ++i) {
+    const double u = center.x() + offset(rng), v = center.y() + offset(rng);
+    if (!field.in_band(u, v)) continue;
+    double f[2], df_du[2], df_dv[2], g[2], dg_dv[2], dg_du[2];
+    field.interpolate(u, v, f, df_du, df_dv);
+    ceres_interpolator.Evaluate(v, u, g, dg_dv, dg_du);
+    for (int k = 0; k < 2; ++k) {
+      // Same sums in another order: rounding only.
+      ASSERT_NEAR(f[k], g[k], 1e-12) << u << ", " << v;
+      ASSERT_NEAR(df_du[k], dg_du[k], 1e-12) << u << ", " << v;
+      ASSERT_NEAR(df_dv[k], dg_dv[k], 1e-12) << u << ", " << v;
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 5000);
+}
+
 TEST(ViewEdgeCost, AlignEdgesCovarianceEqualsCeresCovariance) {
   // align_edges forms (J^T J)^-1 sigma^2 itself; ceres::Covariance (dense SVD) on the same
   // residuals at the same pose must give the same matrix.
