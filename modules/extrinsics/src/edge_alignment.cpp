@@ -169,24 +169,33 @@ double median_of(std::vector<double> v) {
 struct ViewFit {
   std::vector<double> distances_px;  // per point (inf when behind the camera)
   int in_image = 0;
+  core::Matrix6d JtJ = core::Matrix6d::Zero();  // of the non-robust residuals, when asked
 };
 
-ViewFit fit_of_view(const TargetView& view, const EdgeDistanceField& field,
+/// Distances (the Huber-free Eq. (2) residuals) of a view's points at x, and J^T J of those
+/// residuals in the same pass when with_jacobian (for the covariance).
+ViewFit fit_of_view(const std::vector<Eigen::Vector3d>& points, const SmoothView& view,
                     const ProjectionModel& cam, const core::PinholeCamera& camera,
-                    const core::Vector6d& x) {
+                    const core::Vector6d& x, bool with_jacobian) {
+  const size_t n = points.size();
+  const ViewEdgeCost cost(&cam, &view, &points, 0.0);
+  std::vector<double> uv(2 * n), residuals(2 * n), jacobian(with_jacobian ? 12 * n : 0);
+  cost.evaluate_points(x.data(), uv.data(), residuals.data(), with_jacobian ? jacobian.data() : nullptr);
   ViewFit fit;
-  fit.distances_px.reserve(view.lidar_circle_points.size());
-  for (const auto& p : view.lidar_circle_points) {
-    double p_camera[3], uv[2];
-    transform_point(x.data(), p, p_camera);
-    if (!(p_camera[2] > detail::kMinDepthM)) {
-      fit.distances_px.push_back(std::numeric_limits<double>::infinity());
+  fit.distances_px.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d px(uv[2 * i], uv[2 * i + 1]);
+    if (!px.allFinite()) {
+      fit.distances_px[i] = std::numeric_limits<double>::infinity();
       continue;
     }
-    detail::project_total(cam, p_camera, uv);
-    const Eigen::Vector2d px(uv[0], uv[1]);
     if (camera.in_image(px)) ++fit.in_image;
-    fit.distances_px.push_back(field.distance_px(px));
+    fit.distances_px[i] = std::hypot(residuals[2 * i], residuals[2 * i + 1]);
+  }
+  if (with_jacobian) {
+    const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>> J(
+        jacobian.data(), static_cast<Eigen::Index>(2 * n), 6);
+    fit.JtJ.noalias() = J.transpose() * J;
   }
   return fit;
 }
@@ -357,6 +366,7 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
 
   std::vector<bool> active(usable_index.size(), true);
   std::vector<double> sum2_of_view(usable_index.size(), 0.0);
+  std::vector<core::Matrix6d> JtJ_of_view(usable_index.size(), core::Matrix6d::Zero());
   std::vector<size_t> count_of_view(usable_index.size(), 0);
   ceres::Solver::Summary summary;
   std::ostringstream message;
@@ -391,7 +401,11 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     std::vector<double> active_rms;
     for (size_t k = 0; k < usable_index.size(); ++k) {
       const TargetView& v = views[usable_index[k]];
-      const ViewFit fit = fit_of_view(v, fields[k]->field, cam, camera, x);
+      // The covariance needs J^T J at the final pose; getting it with each round's fit
+      // saves a pass (there is usually one round).
+      const ViewFit fit = fit_of_view(v.lidar_circle_points, *fields[k], cam, camera, x,
+                                      options.compute_covariance);
+      JtJ_of_view[k] = fit.JtJ;
       double sum2 = 0.0;
       for (double d : fit.distances_px) sum2 += d * d;
       sum2_of_view[k] = sum2;
@@ -465,20 +479,8 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     // problem. The 360 circle points of a hole come from one circle fit and are not
     // independent, so this is a lower bound on the real uncertainty.
     core::Matrix6d JtJ = core::Matrix6d::Zero();
-    std::vector<double> residuals, jacobian;
-    for (size_t k = 0; k < usable_index.size(); ++k) {
-      if (!active[k]) continue;
-      const auto& points = views[usable_index[k]].lidar_circle_points;
-      const ViewEdgeCost cost(&cam, fields[k].get(), &points, 0.0);
-      residuals.resize(2 * points.size());
-      jacobian.resize(12 * points.size());
-      const double* parameters[] = {x.data()};
-      double* jacobians[] = {jacobian.data()};
-      cost.Evaluate(parameters, residuals.data(), jacobians);
-      const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>> J(
-          jacobian.data(), static_cast<Eigen::Index>(2 * points.size()), 6);
-      JtJ.noalias() += J.transpose() * J;
-    }
+    for (size_t k = 0; k < usable_index.size(); ++k)
+      if (active[k]) JtJ += JtJ_of_view[k];
     // Pseudo-inverse as ceres::Covariance's DENSE_SVD with null_space_rank = -1: directions
     // whose eigenvalue is below 1e-14 of the largest are dropped; the covariance is only
     // reported valid when none is (all six parameters observable).
@@ -509,9 +511,10 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
 std::vector<double> point_to_edge_distances(const TargetView& view,
                                             const core::PinholeCamera& camera,
                                             const Eigen::Isometry3d& T_camera_lidar) {
-  const EdgeDistanceField field(view.image_edge_points_px);
+  const SmoothView field(view.image_edge_points_px, {});
   const ProjectionModel cam = detail::make_projection_model(camera);
-  return fit_of_view(view, field, cam, camera, core::to_vector6(T_camera_lidar)).distances_px;
+  return fit_of_view(view.lidar_circle_points, field, cam, camera, core::to_vector6(T_camera_lidar), false)
+      .distances_px;
 }
 
 }  // namespace rgbdt::extrinsics

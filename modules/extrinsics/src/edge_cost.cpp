@@ -1,6 +1,7 @@
 #include "edge_cost.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace rgbdt::extrinsics::detail {
 
@@ -50,7 +51,12 @@ ViewEdgeCost::ViewEdgeCost(const ProjectionModel* cam, const SmoothView* view,
 
 bool ViewEdgeCost::Evaluate(double const* const* parameters, double* residuals,
                             double** jacobians) const {
-  const double* x = parameters[0];
+  evaluate_points(parameters[0], nullptr, residuals, jacobians != nullptr ? jacobians[0] : nullptr);
+  return true;
+}
+
+void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* residuals,
+                                   double* J) const {
   const size_t n = points_->size();
   // R and dR/dx[k] once per evaluation (Jets over the three rotation parameters only).
   using Jet3 = ceres::Jet<double, 3>;
@@ -63,26 +69,27 @@ bool ViewEdgeCost::Evaluate(double const* const* parameters, double* residuals,
     for (int k = 0; k < 3; ++k) dR[k](a / 3, a % 3) = Rj[a].v[k];
   }
   const Eigen::Vector3d t(x[3], x[4], x[5]);
-  double* J = (jacobians != nullptr) ? jacobians[0] : nullptr;  // row-major (2n x 6)
 
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d& p = (*points_)[i];
     const Eigen::Vector3d pc = R * p + t;
     double* r = residuals + 2 * i;
+    double uv[2];
+    Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_uv_pc;
+    if (J == nullptr) project_total(*cam_, pc.data(), uv);
+    else project_total_with_jacobian(*cam_, pc.data(), uv, J_uv_pc.data());
+    if (uv_out != nullptr) {
+      const bool in_front = pc.z() > kMinDepthM;
+      uv_out[2 * i] = in_front ? uv[0] : std::numeric_limits<double>::quiet_NaN();
+      uv_out[2 * i + 1] = in_front ? uv[1] : std::numeric_limits<double>::quiet_NaN();
+    }
     if (J == nullptr) {
-      double uv[2];
-      project_total(*cam_, pc.data(), uv);
       view_->evaluate(uv[0], uv[1], r, nullptr);
       apply_huber(huber_px_, r);
       continue;
     }
-    // d(uv)/d(p_camera) by Jets over the camera point: the same total projection (depth
-    // clamp, radial continuation beyond r_max) as the residual.
-    const Jet3 pj[3] = {Jet3(pc.x(), 0), Jet3(pc.y(), 1), Jet3(pc.z(), 2)};
-    Jet3 uvj[2];
-    project_total(*cam_, pj, uvj);
     double J_f_uv[4];
-    view_->evaluate(uvj[0].a, uvj[1].a, r, J_f_uv);
+    view_->evaluate(uv[0], uv[1], r, J_f_uv);
     Eigen::Matrix2d J_r_uv;
     J_r_uv << J_f_uv[0], J_f_uv[1], J_f_uv[2], J_f_uv[3];
     if (huber_px_ > 0.0) {
@@ -101,9 +108,6 @@ bool ViewEdgeCost::Evaluate(double const* const* parameters, double* residuals,
         r[1] = s * f.y();
       }
     }
-    Eigen::Matrix<double, 2, 3> J_uv_pc;
-    for (int a = 0; a < 2; ++a)
-      for (int b = 0; b < 3; ++b) J_uv_pc(a, b) = uvj[a].v[b];
     const Eigen::Matrix<double, 2, 3> J_r_pc = J_r_uv * J_uv_pc;  // also d(r)/d(translation)
     double* row0 = J + 12 * i;
     double* row1 = row0 + 6;
@@ -115,7 +119,6 @@ bool ViewEdgeCost::Evaluate(double const* const* parameters, double* residuals,
       row1[3 + k] = J_r_pc(1, k);
     }
   }
-  return true;
 }
 
 }  // namespace rgbdt::extrinsics::detail

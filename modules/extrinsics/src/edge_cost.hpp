@@ -102,6 +102,9 @@ class ViewEdgeCost : public ceres::CostFunction {
                const std::vector<Eigen::Vector3d>* points, double huber_px);
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
+  /// Evaluate() at pose x, plus each point's pixel (2n, NaN for points not in front of the
+  /// camera) when uv is not null; jacobian (12n, row-major) may be null.
+  void evaluate_points(const double* x, double* uv, double* residuals, double* jacobian) const;
 
  private:
   const ProjectionModel* cam_;

@@ -63,38 +63,50 @@ void expect_same_jacobian(const detail::ProjectionModel& cam, const detail::Smoo
   }
 }
 
+core::CameraIntrinsics equidistant_intrinsics() {
+  core::CameraIntrinsics in = testing::table1_intrinsics();
+  in.model = core::DistortionModel::kEquidistant;
+  in.distortion = {0.05, -0.01, 0.002, -0.0005};
+  return in;
+}
+
 struct Scene {
-  core::PinholeCamera camera{testing::table1_intrinsics(true)};
+  explicit Scene(const core::CameraIntrinsics& in = testing::table1_intrinsics(true)) : camera(in) {}
+  core::PinholeCamera camera;
   Eigen::Isometry3d truth = testing::true_T_camera_lidar();
   std::vector<TargetView> views = testing::make_views(camera, truth, testing::table1_placements());
   detail::ProjectionModel cam = detail::make_projection_model(camera);
 };
 
 TEST(ViewEdgeCost, AnalyticJacobianEqualsAutodiffInEveryBranch) {
-  const Scene s;
-  Counts total;
-  // Near the truth (band), a few degrees and centimetres off (band edge, Huber), 30 deg off
-  // (nearest-edge form far away), and the LIDAR pushed behind the camera (depth clamp).
-  const std::vector<Eigen::Isometry3d> poses = {
-      s.truth, testing::offset_guess(s.truth, 0.3, -0.2, 0.1, 0.003, 0, 0.002),
-      testing::offset_guess(s.truth, 3, 0, 2, 0.05, 0, 0),
-      testing::offset_guess(s.truth, 30, 0, 0, 0, 0, 0),
-      testing::offset_guess(s.truth, 0, 0, 0, 7.0, 0, 0)};
-  for (const double huber_px : {0.0, 2.0}) {
-    for (size_t v = 0; v < s.views.size(); v += 3) {
-      const detail::SmoothView view(s.views[v].image_edge_points_px, {});
-      for (const auto& T : poses) {
-        expect_same_jacobian(s.cam, view, s.views[v].lidar_circle_points, huber_px,
-                             core::to_vector6(T), &total);
-        if (HasFatalFailure()) return;
+  // Plumb-bob (closed-form projection Jacobian) and equidistant (Jets) cameras.
+  for (const auto& intrinsics : {testing::table1_intrinsics(true), equidistant_intrinsics()}) {
+    SCOPED_TRACE(core::to_string(intrinsics.model));
+    const Scene s(intrinsics);
+    Counts total;
+    // Near the truth (band), a few degrees and centimetres off (band edge, Huber), 30 deg
+    // off (nearest-edge form far away), and the LIDAR pushed behind the camera (depth clamp).
+    const std::vector<Eigen::Isometry3d> poses = {
+        s.truth, testing::offset_guess(s.truth, 0.3, -0.2, 0.1, 0.003, 0, 0.002),
+        testing::offset_guess(s.truth, 3, 0, 2, 0.05, 0, 0),
+        testing::offset_guess(s.truth, 30, 0, 0, 0, 0, 0),
+        testing::offset_guess(s.truth, 0, 0, 0, 7.0, 0, 0)};
+    for (const double huber_px : {0.0, 2.0}) {
+      for (size_t v = 0; v < s.views.size(); v += 3) {
+        const detail::SmoothView view(s.views[v].image_edge_points_px, {});
+        for (const auto& T : poses) {
+          expect_same_jacobian(s.cam, view, s.views[v].lidar_circle_points, huber_px,
+                               core::to_vector6(T), &total);
+          if (HasFatalFailure()) return;
+        }
       }
     }
+    // Every branch was taken by many points.
+    EXPECT_GT(total.in_band, 100);
+    EXPECT_GT(total.outside, 100);
+    EXPECT_GT(total.huber, 100);
+    EXPECT_GT(total.clamped, 100);
   }
-  // Every branch was taken by many points.
-  EXPECT_GT(total.in_band, 100);
-  EXPECT_GT(total.outside, 100);
-  EXPECT_GT(total.huber, 100);
-  EXPECT_GT(total.clamped, 100);
 }
 
 TEST(EdgeDistanceField, InterpolateEqualsCeresBiCubicInterpolator) {
