@@ -14,7 +14,7 @@ namespace {
 // Catmull-Rom weights of the four samples at -1, 0, 1, 2 for 0 <= x < 1, and their
 // derivatives: the cubic Hermite spline of ceres::CubicHermiteSpline (tangents
 // (p[k+1] - p[k-1]) / 2) written as weights so that both axes share them.
-void catmull_rom_weights(double x, double w[4], double dw[4]) {
+inline void catmull_rom_weights(double x, double w[4], double dw[4]) {
   const double x2 = x * x, x3 = x2 * x;
   w[0] = 0.5 * (-x3 + 2.0 * x2 - x);
   w[1] = 0.5 * (3.0 * x3 - 5.0 * x2 + 2.0);
@@ -266,7 +266,12 @@ void EdgeDistanceField::nearest_edge(const Eigen::Vector2d& px, Eigen::Vector2d*
 
 void EdgeDistanceField::interpolate(double u, double v, double f[2], double df_du[2],
                                     double df_dv[2]) const {
-  const double u0 = std::floor(u), v0 = std::floor(v);
+  // floor() without the libm call (no SSE4.1 in the baseline ISA); u, v are in the band.
+  const auto floor_of = [](double a) {
+    const int i = static_cast<int>(a);
+    return static_cast<double>(a < i ? i - 1 : i);
+  };
+  const double u0 = floor_of(u), v0 = floor_of(v);
   const int c = static_cast<int>(u0) - col_begin_, r = static_cast<int>(v0) - row_begin_;
   double wu[4], dwu[4], wv[4], dwv[4];
   catmull_rom_weights(u - u0, wu, dwu);
@@ -285,27 +290,31 @@ void EdgeDistanceField::interpolate(double u, double v, double f[2], double df_d
       }
     }
     for (int j = 0; j < 4; ++j) {
+      if (inside) {
+        const long idx = node_index(rr, c - 1 + j);
+        node[i][2 * j] = idx >= 0 ? data_[2 * idx] : 0.0f;
+        node[i][2 * j + 1] = idx >= 0 ? data_[2 * idx + 1] : 0.0f;
+        continue;
+      }
       double value[2];
       node_value(static_cast<int>(v0) - 1 + i, static_cast<int>(u0) - 1 + j, value);
       node[i][2 * j] = static_cast<float>(value[0]);
       node[i][2 * j + 1] = static_cast<float>(value[1]);
     }
   }
-  double value[2] = {0.0, 0.0}, d_u[2] = {0.0, 0.0}, d_v[2] = {0.0, 0.0};
+  // Both components at once (packed doubles).
+  Eigen::Array2d value = Eigen::Array2d::Zero(), d_u = value, d_v = value;
   for (int i = 0; i < 4; ++i) {
     // Along the row first (value and d/du), then across the rows, as the ceres interpolator.
-    double row_value[2] = {0.0, 0.0}, row_du[2] = {0.0, 0.0};
+    Eigen::Array2d row_value = Eigen::Array2d::Zero(), row_du = row_value;
     for (int j = 0; j < 4; ++j) {
-      for (int k = 0; k < 2; ++k) {
-        row_value[k] += wu[j] * node[i][2 * j + k];
-        row_du[k] += dwu[j] * node[i][2 * j + k];
-      }
+      const Eigen::Array2d p(node[i][2 * j], node[i][2 * j + 1]);
+      row_value += wu[j] * p;
+      row_du += dwu[j] * p;
     }
-    for (int k = 0; k < 2; ++k) {
-      value[k] += wv[i] * row_value[k];
-      d_u[k] += wv[i] * row_du[k];
-      d_v[k] += dwv[i] * row_value[k];
-    }
+    value += wv[i] * row_value;
+    d_u += wv[i] * row_du;
+    d_v += dwv[i] * row_value;
   }
   for (int k = 0; k < 2; ++k) {
     f[k] = value[k];
