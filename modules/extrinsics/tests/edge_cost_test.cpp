@@ -117,11 +117,13 @@ TEST(EdgeDistanceField, InterpolateEqualsCeresBiCubicInterpolator) {
   const EdgeDistanceField::Grid grid = field.grid();
   const ceres::BiCubicInterpolator<EdgeDistanceField::Grid> ceres_interpolator(grid);
   std::mt19937 rng(5);
-  const Eigen::Vector2d center(s.views[0].image_ellipses[0].center.x, s.views[0].image_ellipses[0].center.y);
-  std::uniform_real_distribution<double> offset(-200.0, 200.0);
+  const auto& edges = s.views[0].image_edge_points_px;
+  std::uniform_int_distribution<size_t> pick(0, edges.size() - 1);
+  std::uniform_real_distribution<double> offset(-4.0, 4.0);  // [px], around the band
   int checked = 0;
   for (int i = 0; i < 200000 && checked < 5000; ++i) {
-    const double u = center.x() + offset(rng), v = center.y() + offset(rng);
+    const Eigen::Vector2d& e = edges[pick(rng)];
+    const double u = e.x() + offset(rng), v = e.y() + offset(rng);
     if (!field.in_band(u, v)) continue;
     double f[2], df_du[2], df_dv[2], g[2], dg_dv[2], dg_du[2];
     field.interpolate(u, v, f, df_du, df_dv);

@@ -51,7 +51,7 @@ struct EdgeAlignmentOptions {
   /// Coarse-to-fine (kSmoothField): each solve first runs on every coarse_stride-th circle
   /// point of each view, then polishes on all points (same minimum, a fraction of the
   /// cost). 1 solves on all points from the start.
-  int coarse_stride = 8;
+  int coarse_stride = 16;
   /// Window of the paper's plane fit [px] (kPaperPlaneFit); the paper uses 10.
   int paper_window_px = 10;
 

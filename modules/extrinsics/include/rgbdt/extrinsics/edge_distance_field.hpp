@@ -24,7 +24,7 @@ struct EdgeFieldOptions {
   /// Half-width of the interpolated band around the edges [px]. Points beyond it use the
   /// exact nearest-point form (slower per evaluation, same values), so this only trades
   /// build time against evaluation time; raise it when residuals stay large (noisy edges).
-  double band_px = 6.0;
+  double band_px = 5.0;
   /// Neighbourhood radius for the edge normals [px]; raise it for noisy edge points.
   double normal_radius_px = 3.0;
   /// Refuse grids with more nodes than this (guards against stray far-away edge points).
