@@ -3,6 +3,7 @@
 #include <ceres/ceres.h>
 #include <ceres/cubic_interpolation.h>
 #include <ceres/rotation.h>
+#include <ceres/tiny_solver.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -369,16 +370,56 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   std::vector<core::Matrix6d> JtJ_of_view(usable_index.size(), core::Matrix6d::Zero());
   std::vector<size_t> count_of_view(usable_index.size(), 0);
   ceres::Solver::Summary summary;
+  std::string polish_report;
   std::ostringstream message;
   for (int round = 0;; ++round) {
     // Eq. (2) on the coarse subset brings the pose near the minimum at a fraction of the
     // cost per iteration; the full set then only has to polish it (a few iterations).
     const bool coarse_first = !paper && options.coarse_stride > 1;
-    for (int stage = coarse_first ? 0 : 1; stage < 2; ++stage) {
+    if (coarse_first) {
+      // Ceres' full LM from the (possibly poor) start on the coarse subset ...
+      ceres::Problem problem;
+      for (size_t k = 0; k < usable_index.size(); ++k) {
+        if (!active[k] || coarse_points[k].empty()) continue;
+        problem.AddResidualBlock(
+            new ViewEdgeCost(&cam, fields[k].get(), &coarse_points[k], options.huber_px), nullptr,
+            x.data());
+      }
+      ceres::Solve(solver_options, &problem, &summary);
+      result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+      // ... then ceres::TinySolver polishes on all points from inside the basin, with the
+      // same relative-step and gradient tolerances (and no per-evaluation bookkeeping).
+      std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+      std::vector<const ViewEdgeCost*> cost_pointers;
+      for (size_t k = 0; k < usable_index.size(); ++k) {
+        if (!active[k]) continue;
+        costs.push_back(std::make_unique<ViewEdgeCost>(
+            &cam, fields[k].get(), &views[usable_index[k]].lidar_circle_points, options.huber_px));
+        cost_pointers.push_back(costs.back().get());
+      }
+      const detail::StackedEdgeCosts stacked(cost_pointers);
+      ceres::TinySolver<detail::StackedEdgeCosts> polish;
+      polish.options.max_num_iterations = options.max_iterations;
+      polish.options.parameter_tolerance = options.parameter_tolerance;
+      polish.options.gradient_tolerance = solver_options.gradient_tolerance;
+      // TinySolver's function tolerance is absolute; the relative one above is Ceres'.
+      polish.options.function_tolerance = 0.0;
+      Eigen::Matrix<double, 6, 1> x_polish = x;
+      const auto& s = polish.Solve(stacked, &x_polish);
+      x = x_polish;
+      result.iterations += s.iterations;
+      const bool polished = s.status != decltype(polish)::HIT_MAX_ITERATIONS;
+      result.converged = summary.termination_type == ceres::CONVERGENCE && polished;
+      std::ostringstream report;
+      report << "coarse: " << summary.BriefReport() << "; all points: " << s.iterations
+             << " iterations, cost " << s.initial_cost << " -> " << s.final_cost
+             << (polished ? ", converged" : ", hit max_iterations");
+      polish_report = report.str();
+    } else {
       ceres::Problem problem;
       for (size_t k = 0; k < usable_index.size(); ++k) {
         if (!active[k]) continue;
-        const auto& points = stage == 0 ? coarse_points[k] : views[usable_index[k]].lidar_circle_points;
+        const auto& points = views[usable_index[k]].lidar_circle_points;
         if (paper) {
           for (const auto& p : points) {
             problem.AddResidualBlock(
@@ -386,15 +427,16 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
                     new PaperEdgeResidual(&cam, luts[k].get(), p)),
                 nullptr, x.data());
           }
-        } else if (!points.empty()) {
+        } else {
           problem.AddResidualBlock(new ViewEdgeCost(&cam, fields[k].get(), &points, options.huber_px),
                                    nullptr, x.data());
         }
       }
       ceres::Solve(solver_options, &problem, &summary);
       result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+      result.converged = summary.termination_type == ceres::CONVERGENCE;
+      polish_report = summary.BriefReport();
     }
-    result.converged = summary.termination_type == ceres::CONVERGENCE;
 
     // Per-view fit at this solution; reject the worst outlier view, if any, and re-solve.
     std::vector<double> rms(usable_index.size(), 0.0);
@@ -500,8 +542,7 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     }
   }
 
-  message << (paper ? "paper plane-fit LUT" : "smooth field") << ", "
-          << summary.BriefReport();
+  message << (paper ? "paper plane-fit LUT" : "smooth field") << ", " << polish_report;
   result.message = message.str();
   result.solve_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();

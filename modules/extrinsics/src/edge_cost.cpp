@@ -56,7 +56,7 @@ bool ViewEdgeCost::Evaluate(double const* const* parameters, double* residuals,
 }
 
 void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* residuals,
-                                   double* J) const {
+                                   double* J, long jacobian_column_stride) const {
   const size_t n = points_->size();
   // R and dR/dx[k] once per evaluation (Jets over the three rotation parameters only).
   using Jet3 = ceres::Jet<double, 3>;
@@ -109,14 +109,25 @@ void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* resi
       }
     }
     const Eigen::Matrix<double, 2, 3> J_r_pc = J_r_uv * J_uv_pc;  // also d(r)/d(translation)
-    double* row0 = J + 12 * i;
-    double* row1 = row0 + 6;
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector2d d = J_r_pc * (dR[k] * p);
-      row0[k] = d.x();
-      row1[k] = d.y();
-      row0[3 + k] = J_r_pc(0, k);
-      row1[3 + k] = J_r_pc(1, k);
+    if (jacobian_column_stride == 0) {
+      double* row0 = J + 12 * i;
+      double* row1 = row0 + 6;
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector2d d = J_r_pc * (dR[k] * p);
+        row0[k] = d.x();
+        row1[k] = d.y();
+        row0[3 + k] = J_r_pc(0, k);
+        row1[3 + k] = J_r_pc(1, k);
+      }
+    } else {
+      double* col = J + 2 * i;
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector2d d = J_r_pc * (dR[k] * p);
+        col[k * jacobian_column_stride] = d.x();
+        col[k * jacobian_column_stride + 1] = d.y();
+        col[(3 + k) * jacobian_column_stride] = J_r_pc(0, k);
+        col[(3 + k) * jacobian_column_stride + 1] = J_r_pc(1, k);
+      }
     }
   }
 }

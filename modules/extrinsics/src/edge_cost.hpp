@@ -103,14 +103,44 @@ class ViewEdgeCost : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
   /// Evaluate() at pose x, plus each point's pixel (2n, NaN for points not in front of the
-  /// camera) when uv is not null; jacobian (12n, row-major) may be null.
-  void evaluate_points(const double* x, double* uv, double* residuals, double* jacobian) const;
+  /// camera) when uv is not null. jacobian may be null; it is row-major (2n x 6) when
+  /// jacobian_column_stride is 0, else column-major with that leading dimension (for a
+  /// stacked Eigen matrix of several views, jacobian pointing at this view's first row).
+  void evaluate_points(const double* x, double* uv, double* residuals, double* jacobian,
+                       long jacobian_column_stride = 0) const;
+  int num_points() const { return static_cast<int>(points_->size()); }
 
  private:
   const ProjectionModel* cam_;
   const SmoothView* view_;
   const std::vector<Eigen::Vector3d>* points_;
   double huber_px_;
+};
+
+/// Eq. (2) over several views for ceres::TinySolver (dense LM without ceres::Problem's
+/// per-evaluation bookkeeping, which dominates a 6-parameter problem with thousands of
+/// residuals): the residuals of the views stacked, Jacobian column-major.
+class StackedEdgeCosts {
+ public:
+  using Scalar = double;
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 6 };
+  explicit StackedEdgeCosts(std::vector<const ViewEdgeCost*> costs) : costs_(std::move(costs)) {
+    for (const ViewEdgeCost* c : costs_) num_residuals_ += 2 * c->num_points();
+  }
+  int NumResiduals() const { return num_residuals_; }
+  bool operator()(const double* x, double* residuals, double* jacobian) const {
+    long row = 0;
+    for (const ViewEdgeCost* c : costs_) {
+      c->evaluate_points(x, nullptr, residuals + row, jacobian != nullptr ? jacobian + row : nullptr,
+                         num_residuals_);
+      row += 2 * c->num_points();
+    }
+    return true;
+  }
+
+ private:
+  std::vector<const ViewEdgeCost*> costs_;
+  int num_residuals_ = 0;
 };
 
 }  // namespace rgbdt::extrinsics::detail
