@@ -9,9 +9,10 @@
 /// distance to the curve up to O(spacing^2 * curvature), and it is linear across the edge,
 /// so bicubic interpolation reproduces it exactly near the edge (a sampled |d| would be
 /// biased by up to ~0.15 px towards the grid nodes). The grid is filled only in a narrow
-/// band around the edges (cheap to build); outside the band the same quantity is computed
-/// exactly from the nearest edge point (brute force), so points projected far from the
-/// target, even outside the image, still feel the true distance and its gradient.
+/// band around the edges, stored in 8 x 8 node tiles that hold band nodes (cheap to build);
+/// outside the band the same quantity is computed exactly from the nearest edge point (a
+/// ring search over 16 px cells), so points projected far from the target, even outside
+/// the image, still feel the true distance and its gradient.
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
@@ -21,9 +22,10 @@
 namespace rgbdt::extrinsics {
 
 struct EdgeFieldOptions {
-  /// Half-width of the interpolated band around the edges [px]. Points beyond it use the
-  /// exact nearest-point form (slower per evaluation, same values), so this only trades
-  /// build time against evaluation time; raise it when residuals stay large (noisy edges).
+  /// Half-width of the interpolated band around the edges [px]; bicubic is used within
+  /// band_px - 3 of an edge. Points beyond it use the exact nearest-point form (slower per
+  /// evaluation, same values), so this only trades build time against evaluation time;
+  /// raise it when residuals stay large (noisy edges).
   double band_px = 5.0;
   /// Neighbourhood radius for the edge normals [px]; raise it for noisy edge points.
   double normal_radius_px = 3.0;
