@@ -1,6 +1,5 @@
 #include "rgbdt/extrinsics/edge_distance_field.hpp"
 
-#include <Eigen/Eigenvalues>
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -97,14 +96,17 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     throw std::invalid_argument(os.str());
   }
   const int n = static_cast<int>(edge_points_px.size());
+  // Grid pixel of point i, rounded (coordinates relative to the grid are >= margin > 0, so
+  // truncating x + 0.5 rounds like lround, without the libm call).
+  const auto pixel_c = [&](int i) { return static_cast<int>(edge_points_px[i].x() - col_begin_ + 0.5); };
+  const auto pixel_r = [&](int i) { return static_cast<int>(edge_points_px[i].y() - row_begin_ + 0.5); };
 
   // Bucket the points in 4 x 4 px cells (linked lists), for the neighbour searches.
   constexpr int kCell = 4;
   const int cell_cols = cols_ / kCell + 1, cell_rows = rows_ / kCell + 1;
   std::vector<int> head(static_cast<size_t>(cell_cols) * cell_rows, -1), next(n, -1);
   for (int i = 0; i < n; ++i) {
-    const int c = static_cast<int>(std::lround(edge_points_px[i].x())) - col_begin_;
-    const int r = static_cast<int>(std::lround(edge_points_px[i].y())) - row_begin_;
+    const int c = pixel_c(i), r = pixel_r(i);
     const size_t idx = static_cast<size_t>(r / kCell) * cell_cols + c / kCell;
     next[i] = head[idx];
     head[idx] = i;
@@ -129,22 +131,27 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
     int count = 0;
-    for_points_near(static_cast<int>(std::lround(p.x())) - col_begin_,
-                    static_cast<int>(std::lround(p.y())) - row_begin_, reach, [&](int j) {
-                      const Eigen::Vector2d& q = edge_points_px[j];
-                      if ((q - p).squaredNorm() > radius2) return;
-                      mean += q;
-                      scatter += q * q.transpose();
-                      ++count;
-                    });
+    for_points_near(pixel_c(i), pixel_r(i), reach, [&](int j) {
+      const Eigen::Vector2d q = edge_points_px[j] - p;  // relative: no cancellation
+      if (q.squaredNorm() > radius2) return;
+      mean += q;
+      scatter += q * q.transpose();
+      ++count;
+    });
     if (count < 3) continue;  // isolated point: distance to the point itself
     mean /= count;
     scatter = scatter / count - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig;
-    eig.computeDirect(scatter);  // closed form for 2x2, no iterations
+    // Eigen-decomposition of the symmetric 2x2 scatter in closed form.
+    const double a = scatter(0, 0), b = scatter(0, 1), c = scatter(1, 1);
+    const double half_diff = 0.5 * (a - c), root = std::sqrt(half_diff * half_diff + b * b);
+    const double l_max = 0.5 * (a + c) + root, l_min = 0.5 * (a + c) - root;
     // A line needs one dominant direction; a blob of points has none.
-    if (eig.eigenvalues()(1) < 4.0 * eig.eigenvalues()(0)) continue;
-    normals[i] = eig.eigenvectors().col(0);
+    if (l_max < 4.0 * l_min) continue;
+    // Eigenvector of l_min: either row of (scatter - l_min I), rotated; take the better one.
+    const Eigen::Vector2d v1(b, l_min - a), v2(l_min - c, b);
+    const Eigen::Vector2d v = v1.squaredNorm() >= v2.squaredNorm() ? v1 : v2;
+    if (v.squaredNorm() == 0.0) continue;  // all neighbours coincide: no direction
+    normals[i] = v.normalized();
   }
 
   // Tiles that hold band nodes: those overlapping some point's (2 band + 1)^2 square.
@@ -158,8 +165,7 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
   };
   std::vector<Square> squares(n);
   for (int i = 0; i < n; ++i) {
-    const int c0 = static_cast<int>(std::lround(edge_points_px[i].x())) - col_begin_;
-    const int r0 = static_cast<int>(std::lround(edge_points_px[i].y())) - row_begin_;
+    const int c0 = pixel_c(i), r0 = pixel_r(i);
     Square& q = squares[i];
     q = {std::max(0, c0 - band), std::min(cols_ - 1, c0 + band), std::max(0, r0 - band),
          std::min(rows_ - 1, r0 + band)};
@@ -234,8 +240,9 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
   std::vector<int> cell_of(n);
   search_start_.assign(static_cast<size_t>(search_cols_) * search_rows_ + 1, 0);
   for (int i = 0; i < n; ++i) {
-    const int c = static_cast<int>(std::floor(points_[i].x() - col_begin_)) / kSearchCell;
-    const int r = static_cast<int>(std::floor(points_[i].y() - row_begin_)) / kSearchCell;
+    // Relative coordinates are positive: truncation is floor.
+    const int c = static_cast<int>(points_[i].x() - col_begin_) / kSearchCell;
+    const int r = static_cast<int>(points_[i].y() - row_begin_) / kSearchCell;
     cell_of[i] = r * search_cols_ + c;
     ++search_start_[cell_of[i] + 1];
   }
