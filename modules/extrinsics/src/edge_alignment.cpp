@@ -3,7 +3,9 @@
 #include <ceres/ceres.h>
 #include <ceres/cubic_interpolation.h>
 #include <ceres/rotation.h>
+#include <ceres/tiny_solver.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,6 +15,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "edge_cost.hpp"
 #include "projection.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/extrinsics/initial_guess.hpp"
@@ -63,140 +66,9 @@ ProjectionModel make_projection_model(const core::PinholeCamera& camera) {
 namespace {
 
 using detail::ProjectionModel;
-using Grid = ceres::Grid2D<float, 2>;
-using Interpolator = ceres::BiCubicInterpolator<Grid>;
-
-template <typename T>
-void transform_point(const T* x, const Eigen::Vector3d& p_lidar, T* p_camera) {
-  const T p[3] = {T(p_lidar.x()), T(p_lidar.y()), T(p_lidar.z())};
-  ceres::AngleAxisRotatePoint(x, p, p_camera);
-  p_camera[0] += x[3];
-  p_camera[1] += x[4];
-  p_camera[2] += x[5];
-}
-
-inline double value_of(double x) { return x; }
-template <typename J>
-double value_of(const J& jet) {
-  return jet.a;
-}
-
-/// Field of one view, ready for the cost functions.
-struct SmoothView {
-  explicit SmoothView(const std::vector<Eigen::Vector2d>& edges, const EdgeFieldOptions& o)
-      : field(edges, o),
-        grid(field.data().data(), field.row_begin(), field.row_begin() + field.rows(),
-             field.col_begin(), field.col_begin() + field.cols()),
-        interpolator(grid) {}
-  EdgeDistanceField field;
-  Grid grid;
-  Interpolator interpolator;
-};
-
-/// Eq. (2) for one LIDAR circle point, ours: the 2-vector from the edge to the projection
-/// (its norm is the distance): bicubic in the exact field near the edges, the exact
-/// nearest-edge form further away.
-struct SmoothEdgeResidual {
-  SmoothEdgeResidual(const ProjectionModel* cam, const SmoothView* view, Eigen::Vector3d p)
-      : cam_(cam), view_(view), p_lidar_(std::move(p)) {}
-  template <typename T>
-  bool operator()(const T* x, T* residual) const {
-    T p_camera[3];
-    transform_point(x, p_lidar_, p_camera);
-    return from_camera_point(p_camera, residual);
-  }
-  template <typename T>
-  bool from_camera_point(const T* p_camera, T* residual) const {
-    T uv[2];
-    detail::project_total(*cam_, p_camera, uv);
-    const EdgeDistanceField& f = view_->field;
-    const double u = value_of(uv[0]), v = value_of(uv[1]);
-    if (f.in_band(u, v)) {
-      view_->interpolator.Evaluate(uv[1], uv[0], residual);
-      return true;
-    }
-    Eigen::Vector2d p, n;
-    f.nearest_edge({u, v}, &p, &n);
-    const T du = uv[0] - T(p.x()), dv = uv[1] - T(p.y());
-    if (n.squaredNorm() > 0.5) {
-      const T along = du * T(n.x()) + dv * T(n.y());
-      residual[0] = along * T(n.x());
-      residual[1] = along * T(n.y());
-    } else {
-      residual[0] = du;
-      residual[1] = dv;
-    }
-    return true;
-  }
-  const ProjectionModel* cam_;
-  const SmoothView* view_;
-  Eigen::Vector3d p_lidar_;
-};
-
-/// All points of one view in one cost function (Ceres' per-block overhead dominated with
-/// one block per point). The Huber loss is folded into the residual, r' = r sqrt(rho(s)/s)
-/// with s = |r|^2, so that |r'|^2 = rho(s): the same objective as a per-point
-/// ceres::HuberLoss, differentiated exactly through the jets.
-class ViewEdgeCost : public ceres::CostFunction {
- public:
-  ViewEdgeCost(const ProjectionModel* cam, const SmoothView* view,
-               const std::vector<Eigen::Vector3d>* points, double huber_px)
-      : cam_(cam), view_(view), points_(points), huber_px_(huber_px) {
-    set_num_residuals(2 * static_cast<int>(points->size()));
-    mutable_parameter_block_sizes()->push_back(6);
-  }
-
-  bool Evaluate(double const* const* parameters, double* residuals,
-                double** jacobians) const override {
-    const double* x = parameters[0];
-    const size_t n = points_->size();
-    if (jacobians == nullptr || jacobians[0] == nullptr) {
-      for (size_t i = 0; i < n; ++i) {
-        SmoothEdgeResidual(cam_, view_, (*points_)[i])(x, residuals + 2 * i);
-        apply_huber(residuals + 2 * i);
-      }
-      return true;
-    }
-    using Jet = ceres::Jet<double, 6>;
-    Jet xj[6];
-    for (int k = 0; k < 6; ++k) xj[k] = Jet(x[k], k);
-    // The rotation once per evaluation, not once per point (sin/cos of jets are costly).
-    Jet R[9];
-    ceres::AngleAxisToRotationMatrix(xj, ceres::RowMajorAdapter3x3(R));
-    double* J = jacobians[0];  // row-major (2n x 6)
-    for (size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d& p = (*points_)[i];
-      Jet pc[3], r[2];
-      for (int a = 0; a < 3; ++a) pc[a] = R[3 * a] * p.x() + R[3 * a + 1] * p.y() + R[3 * a + 2] * p.z() + xj[3 + a];
-      SmoothEdgeResidual(cam_, view_, p).from_camera_point(pc, r);
-      apply_huber(r);
-      for (int j = 0; j < 2; ++j) {
-        residuals[2 * i + j] = r[j].a;
-        for (int k = 0; k < 6; ++k) J[(2 * i + j) * 6 + k] = r[j].v[k];
-      }
-    }
-    return true;
-  }
-
- private:
-  template <typename T>
-  void apply_huber(T* r) const {
-    if (huber_px_ <= 0.0) return;
-    using std::sqrt;
-    const T s = r[0] * r[0] + r[1] * r[1];
-    const double delta2 = huber_px_ * huber_px_;
-    if (value_of(s) <= delta2) return;
-    // rho(s) = 2 delta sqrt(s) - delta^2 beyond delta^2.
-    const T norm = sqrt(s);
-    const T scale = sqrt((T(2.0 * huber_px_) * norm - T(delta2)) / s);
-    r[0] *= scale;
-    r[1] *= scale;
-  }
-  const ProjectionModel* cam_;
-  const SmoothView* view_;
-  const std::vector<Eigen::Vector3d>* points_;
-  double huber_px_;
-};
+using detail::SmoothView;
+using detail::transform_point;
+using detail::ViewEdgeCost;
 
 /// Coarse stage: hole centres projected against the ellipse centres. Its basin is wide
 /// (a PnP refinement), so it brings a poor guess near enough for Eq. (2), whose
@@ -298,24 +170,33 @@ double median_of(std::vector<double> v) {
 struct ViewFit {
   std::vector<double> distances_px;  // per point (inf when behind the camera)
   int in_image = 0;
+  core::Matrix6d JtJ = core::Matrix6d::Zero();  // of the non-robust residuals, when asked
 };
 
-ViewFit fit_of_view(const TargetView& view, const EdgeDistanceField& field,
+/// Distances (the Huber-free Eq. (2) residuals) of a view's points at x, and J^T J of those
+/// residuals in the same pass when with_jacobian (for the covariance).
+ViewFit fit_of_view(const std::vector<Eigen::Vector3d>& points, const SmoothView& view,
                     const ProjectionModel& cam, const core::PinholeCamera& camera,
-                    const core::Vector6d& x) {
+                    const core::Vector6d& x, bool with_jacobian) {
+  const size_t n = points.size();
+  const ViewEdgeCost cost(&cam, &view, &points, 0.0);
+  std::vector<double> uv(2 * n), residuals(2 * n), jacobian(with_jacobian ? 12 * n : 0);
+  cost.evaluate_points(x.data(), uv.data(), residuals.data(), with_jacobian ? jacobian.data() : nullptr);
   ViewFit fit;
-  fit.distances_px.reserve(view.lidar_circle_points.size());
-  for (const auto& p : view.lidar_circle_points) {
-    double p_camera[3], uv[2];
-    transform_point(x.data(), p, p_camera);
-    if (!(p_camera[2] > detail::kMinDepthM)) {
-      fit.distances_px.push_back(std::numeric_limits<double>::infinity());
+  fit.distances_px.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d px(uv[2 * i], uv[2 * i + 1]);
+    if (!px.allFinite()) {
+      fit.distances_px[i] = std::numeric_limits<double>::infinity();
       continue;
     }
-    detail::project_total(cam, p_camera, uv);
-    const Eigen::Vector2d px(uv[0], uv[1]);
     if (camera.in_image(px)) ++fit.in_image;
-    fit.distances_px.push_back(field.distance_px(px));
+    fit.distances_px[i] = std::hypot(residuals[2 * i], residuals[2 * i + 1]);
+  }
+  if (with_jacobian) {
+    const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>> J(
+        jacobian.data(), static_cast<Eigen::Index>(2 * n), 6);
+    fit.JtJ.noalias() = J.transpose() * J;
   }
   return fit;
 }
@@ -366,6 +247,7 @@ std::string EdgeAlignmentOptions::validate() const {
   if (!(outlier_min_rms_px > 0.0)) os << "outlier_min_rms_px = " << outlier_min_rms_px << ", expected > 0; ";
   if (!(min_in_image_fraction >= 0.0 && min_in_image_fraction <= 1.0))
     os << "min_in_image_fraction = " << min_in_image_fraction << ", expected in [0, 1]; ";
+  if (coarse_stride < 1) os << "coarse_stride = " << coarse_stride << ", expected >= 1; ";
   os << field.validate();
   return os.str();
 }
@@ -387,7 +269,6 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   }
   EdgeAlignmentResult result;
   result.views.resize(views.size());
-  std::vector<TargetView> usable_views;
   std::vector<size_t> usable_index;
   std::ostringstream reasons;
   for (size_t i = 0; i < views.size(); ++i) {
@@ -397,13 +278,12 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     vr.reason = usable_reason(views[i], camera);
     vr.used = vr.reason.empty();
     if (vr.used) {
-      usable_views.push_back(views[i]);
       usable_index.push_back(i);
     } else {
       reasons << vr.name << ": " << vr.reason << "; ";
     }
   }
-  if (usable_views.empty()) {
+  if (usable_index.empty()) {
     throw std::invalid_argument("align_edges: no usable view among " +
                                 std::to_string(views.size()) + " (" + reasons.str() + ")");
   }
@@ -411,7 +291,13 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   if (T_camera_lidar_guess) {
     result.T_camera_lidar_initial = *T_camera_lidar_guess;
   } else {
-    const InitialGuessResult guess = closed_form_initial_guess(usable_views, camera);
+    // Copy the views only when some are unusable.
+    std::vector<TargetView> usable_views;
+    if (usable_index.size() != views.size()) {
+      for (size_t i : usable_index) usable_views.push_back(views[i]);
+    }
+    const InitialGuessResult guess =
+        closed_form_initial_guess(usable_views.empty() ? views : usable_views, camera);
     if (!guess.ok) {
       throw std::invalid_argument("align_edges: no initial guess given and the closed-form "
                                   "guess failed: " + guess.message);
@@ -425,6 +311,8 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   const bool paper = options.method == EdgeAlignmentMethod::kPaperPlaneFit;
   std::vector<std::unique_ptr<SmoothView>> fields;
   std::vector<std::unique_ptr<PaperPlaneLut>> luts;
+  // Coarse-to-fine (ours): every coarse_stride-th circle point of each view.
+  std::vector<std::vector<Eigen::Vector3d>> coarse_points(usable_index.size());
   for (size_t k = 0; k < usable_index.size(); ++k) {
     const TargetView& v = views[usable_index[k]];
     // The exact field also measures the per-view fit of the paper's method, so that both
@@ -433,6 +321,10 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     if (paper) {
       luts.push_back(std::make_unique<PaperPlaneLut>(v.image_edge_points_px, camera.width(),
                                                      camera.height(), options.paper_window_px));
+    } else if (options.coarse_stride > 1) {
+      const auto& all = v.lidar_circle_points;
+      for (size_t i = 0; i < all.size(); i += static_cast<size_t>(options.coarse_stride))
+        coarse_points[k].push_back(all[i]);
     }
   }
 
@@ -461,49 +353,105 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
       result.iterations += s.num_successful_steps + s.num_unsuccessful_steps;
     }
   }
+
+  ceres::Solver::Options solver_options;
+  solver_options.minimizer_type = ceres::TRUST_REGION;
+  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.gradient_tolerance = 1e-14;
+  solver_options.num_threads = 1;
+  solver_options.logging_type = ceres::SILENT;
+
   std::vector<bool> active(usable_index.size(), true);
+  std::vector<double> sum2_of_view(usable_index.size(), 0.0);
+  std::vector<core::Matrix6d> JtJ_of_view(usable_index.size(), core::Matrix6d::Zero());
+  std::vector<size_t> count_of_view(usable_index.size(), 0);
   ceres::Solver::Summary summary;
+  std::string polish_report;
   std::ostringstream message;
   for (int round = 0;; ++round) {
-    ceres::Problem::Options problem_options;
-    ceres::Problem problem(problem_options);
-    for (size_t k = 0; k < usable_index.size(); ++k) {
-      if (!active[k]) continue;
-      const auto& points = views[usable_index[k]].lidar_circle_points;
-      if (paper) {
-        for (const auto& p : points) {
-          problem.AddResidualBlock(
-              new ceres::NumericDiffCostFunction<PaperEdgeResidual, ceres::CENTRAL, 1, 6>(
-                  new PaperEdgeResidual(&cam, luts[k].get(), p)),
-              nullptr, x.data());
-        }
-      } else {
-        problem.AddResidualBlock(new ViewEdgeCost(&cam, fields[k].get(), &points, options.huber_px),
-                                 nullptr, x.data());
+    // Eq. (2) on the coarse subset brings the pose near the minimum at a fraction of the
+    // cost per iteration; the full set then only has to polish it (a few iterations).
+    const bool coarse_first = !paper && options.coarse_stride > 1;
+    if (coarse_first) {
+      // Ceres' full LM from the (possibly poor) start on the coarse subset ...
+      ceres::Problem problem;
+      for (size_t k = 0; k < usable_index.size(); ++k) {
+        if (!active[k] || coarse_points[k].empty()) continue;
+        problem.AddResidualBlock(
+            new ViewEdgeCost(&cam, fields[k].get(), &coarse_points[k], options.huber_px), nullptr,
+            x.data());
       }
+      ceres::Solve(solver_options, &problem, &summary);
+      result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+      // ... then ceres::TinySolver polishes on all points from inside the basin, with the
+      // same relative-step and gradient tolerances (and no per-evaluation bookkeeping).
+      std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+      std::vector<const ViewEdgeCost*> cost_pointers;
+      for (size_t k = 0; k < usable_index.size(); ++k) {
+        if (!active[k]) continue;
+        costs.push_back(std::make_unique<ViewEdgeCost>(
+            &cam, fields[k].get(), &views[usable_index[k]].lidar_circle_points, options.huber_px));
+        cost_pointers.push_back(costs.back().get());
+      }
+      const detail::StackedEdgeCosts stacked(cost_pointers);
+      ceres::TinySolver<detail::StackedEdgeCosts> polish;
+      polish.options.max_num_iterations = options.max_iterations;
+      polish.options.parameter_tolerance = options.parameter_tolerance;
+      polish.options.gradient_tolerance = solver_options.gradient_tolerance;
+      // TinySolver's function tolerance is absolute; the relative one above is Ceres'.
+      polish.options.function_tolerance = 0.0;
+      Eigen::Matrix<double, 6, 1> x_polish = x;
+      const auto& s = polish.Solve(stacked, &x_polish);
+      x = x_polish;
+      result.iterations += s.iterations;
+      const bool polished = s.status != decltype(polish)::HIT_MAX_ITERATIONS;
+      result.converged = summary.termination_type == ceres::CONVERGENCE && polished;
+      std::ostringstream report;
+      report << "coarse: " << summary.BriefReport() << "; all points: " << s.iterations
+             << " iterations, cost " << s.initial_cost << " -> " << s.final_cost
+             << (polished ? ", converged" : ", hit max_iterations");
+      polish_report = report.str();
+    } else {
+      ceres::Problem problem;
+      for (size_t k = 0; k < usable_index.size(); ++k) {
+        if (!active[k]) continue;
+        const auto& points = views[usable_index[k]].lidar_circle_points;
+        if (paper) {
+          for (const auto& p : points) {
+            problem.AddResidualBlock(
+                new ceres::NumericDiffCostFunction<PaperEdgeResidual, ceres::CENTRAL, 1, 6>(
+                    new PaperEdgeResidual(&cam, luts[k].get(), p)),
+                nullptr, x.data());
+          }
+        } else {
+          problem.AddResidualBlock(new ViewEdgeCost(&cam, fields[k].get(), &points, options.huber_px),
+                                   nullptr, x.data());
+        }
+      }
+      ceres::Solve(solver_options, &problem, &summary);
+      result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+      result.converged = summary.termination_type == ceres::CONVERGENCE;
+      polish_report = summary.BriefReport();
     }
-    ceres::Solver::Options solver_options;
-    solver_options.minimizer_type = ceres::TRUST_REGION;
-    solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-    solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-    solver_options.max_num_iterations = options.max_iterations;
-    solver_options.function_tolerance = options.function_tolerance;
-    solver_options.parameter_tolerance = options.parameter_tolerance;
-    solver_options.gradient_tolerance = 1e-14;
-    solver_options.num_threads = 1;
-    solver_options.logging_type = ceres::SILENT;
-    ceres::Solve(solver_options, &problem, &summary);
-    result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
-    result.converged = summary.termination_type == ceres::CONVERGENCE;
 
     // Per-view fit at this solution; reject the worst outlier view, if any, and re-solve.
     std::vector<double> rms(usable_index.size(), 0.0);
     std::vector<double> active_rms;
     for (size_t k = 0; k < usable_index.size(); ++k) {
       const TargetView& v = views[usable_index[k]];
-      const ViewFit fit = fit_of_view(v, fields[k]->field, cam, camera, x);
+      // The covariance needs J^T J at the final pose; getting it with each round's fit
+      // saves a pass (there is usually one round).
+      const ViewFit fit = fit_of_view(v.lidar_circle_points, *fields[k], cam, camera, x,
+                                      options.compute_covariance);
+      JtJ_of_view[k] = fit.JtJ;
       double sum2 = 0.0;
       for (double d : fit.distances_px) sum2 += d * d;
+      sum2_of_view[k] = sum2;
+      count_of_view[k] = fit.distances_px.size();
       rms[k] = std::sqrt(sum2 / std::max<size_t>(1, fit.distances_px.size()));
       ViewResidual& vr = result.views[usable_index[k]];
       vr.rms_px = rms[k];
@@ -561,39 +509,40 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   size_t count = 0;
   for (size_t k = 0; k < usable_index.size(); ++k) {
     if (!active[k]) continue;
-    const ViewFit fit = fit_of_view(views[usable_index[k]], fields[k]->field, cam, camera, x);
-    for (double d : fit.distances_px) {
-      sum2 += d * d;
-      ++count;
-    }
+    sum2 += sum2_of_view[k];  // the fit of the last round, at this x
+    count += count_of_view[k];
   }
   result.rms_px = count ? std::sqrt(sum2 / count) : 0.0;
 
   if (options.compute_covariance && count > 6) {
     // Covariance of Eq. (2)'s minimiser: (J^T J)^-1 scaled by the residual variance
-    // sigma^2 = sum d^2 / (N - 6). The 360 circle points of a hole come from one circle
-    // fit and are not independent, so this is a lower bound on the real uncertainty.
-    ceres::Problem problem;
-    for (size_t k = 0; k < usable_index.size(); ++k) {
-      if (!active[k]) continue;
-      problem.AddResidualBlock(
-          new ViewEdgeCost(&cam, fields[k].get(), &views[usable_index[k]].lidar_circle_points, 0.0),
-          nullptr, x.data());
-    }
-    ceres::Covariance::Options cov_options;
-    cov_options.algorithm_type = ceres::DENSE_SVD;
-    cov_options.null_space_rank = -1;
-    ceres::Covariance covariance(cov_options);
-    std::vector<std::pair<const double*, const double*>> blocks = {{x.data(), x.data()}};
-    if (covariance.Compute(blocks, &problem)) {
-      covariance.GetCovarianceBlock(x.data(), x.data(), result.covariance.data());
+    // sigma^2 = sum d^2 / (N - 6), J the Jacobian of the (non-robust) residuals at the
+    // solution; what ceres::Covariance computes for one dense block, without building a
+    // problem. The 360 circle points of a hole come from one circle fit and are not
+    // independent, so this is a lower bound on the real uncertainty.
+    core::Matrix6d JtJ = core::Matrix6d::Zero();
+    for (size_t k = 0; k < usable_index.size(); ++k)
+      if (active[k]) JtJ += JtJ_of_view[k];
+    // Pseudo-inverse as ceres::Covariance's DENSE_SVD with null_space_rank = -1: directions
+    // whose eigenvalue is below 1e-14 of the largest are dropped; the covariance is only
+    // reported valid when none is (all six parameters observable).
+    const Eigen::SelfAdjointEigenSolver<core::Matrix6d> eig(JtJ);
+    const Eigen::Matrix<double, 6, 1>& lambda = eig.eigenvalues();
+    if (eig.info() == Eigen::Success && lambda(5) > 0.0) {
+      Eigen::Matrix<double, 6, 1> inverse = Eigen::Matrix<double, 6, 1>::Zero();
+      bool full_rank = true;
+      for (int i = 0; i < 6; ++i) {
+        if (lambda(i) >= 1e-14 * lambda(5)) inverse(i) = 1.0 / lambda(i);
+        else full_rank = false;
+      }
+      result.covariance = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
       result.covariance *= sum2 / static_cast<double>(count - 6);
-      result.covariance_valid = true;
+      result.covariance_valid = full_rank;
+      if (!full_rank) message << "covariance rank-deficient (a direction is unobservable); ";
     }
   }
 
-  message << (paper ? "paper plane-fit LUT" : "smooth field") << ", "
-          << summary.BriefReport();
+  message << (paper ? "paper plane-fit LUT" : "smooth field") << ", " << polish_report;
   result.message = message.str();
   result.solve_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
@@ -603,9 +552,10 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
 std::vector<double> point_to_edge_distances(const TargetView& view,
                                             const core::PinholeCamera& camera,
                                             const Eigen::Isometry3d& T_camera_lidar) {
-  const EdgeDistanceField field(view.image_edge_points_px);
+  const SmoothView field(view.image_edge_points_px, {});
   const ProjectionModel cam = detail::make_projection_model(camera);
-  return fit_of_view(view, field, cam, camera, core::to_vector6(T_camera_lidar)).distances_px;
+  return fit_of_view(view.lidar_circle_points, field, cam, camera, core::to_vector6(T_camera_lidar), false)
+      .distances_px;
 }
 
 }  // namespace rgbdt::extrinsics

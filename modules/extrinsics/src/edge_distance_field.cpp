@@ -1,8 +1,8 @@
 #include "rgbdt/extrinsics/edge_distance_field.hpp"
 
-#include <ceres/cubic_interpolation.h>
-
-#include <Eigen/Eigenvalues>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -13,14 +13,48 @@ namespace rgbdt::extrinsics {
 
 namespace {
 
-// Tangent-line offset, except beyond the end of an open edge, where the tangent line would
-// continue the edge into empty space, and at isolated points (zero normal).
-Eigen::Vector2d offset_from(const Eigen::Vector2d& x, const Eigen::Vector2d& p,
-                            const Eigen::Vector2d& n, double tangent_reach_px) {
-  const Eigen::Vector2d d = x - p;
-  if (n.squaredNorm() < 0.5) return d;
-  if (std::abs(d.x() * -n.y() + d.y() * n.x()) > tangent_reach_px) return d;
-  return d.dot(n) * n;
+// Catmull-Rom weights of the four samples at -1, 0, 1, 2 for 0 <= x < 1, and their
+// derivatives: the cubic Hermite spline of ceres::CubicHermiteSpline (tangents
+// (p[k+1] - p[k-1]) / 2) written as weights so that both axes share them.
+inline void catmull_rom_weights(double x, double w[4], double dw[4]) {
+  const double x2 = x * x, x3 = x2 * x;
+  w[0] = 0.5 * (-x3 + 2.0 * x2 - x);
+  w[1] = 0.5 * (3.0 * x3 - 5.0 * x2 + 2.0);
+  w[2] = 0.5 * (-3.0 * x3 + 4.0 * x2 + x);
+  w[3] = 0.5 * (x3 - x2);
+  dw[0] = 0.5 * (-3.0 * x2 + 4.0 * x - 1.0);
+  dw[1] = 0.5 * (9.0 * x2 - 10.0 * x);
+  dw[2] = 0.5 * (-9.0 * x2 + 8.0 * x + 1.0);
+  dw[3] = 0.5 * (3.0 * x2 - 2.0 * x);
+}
+
+// One tile row of the nearest-point claim: node k (0..7) lies at du = u0 + k, dv^2 = dv2
+// from point i, which takes the nodes it is strictly nearer to. SSE2 (every x86-64) does
+// the 8 nodes in two steps; GCC does not vectorise the scalar loop's selects.
+inline void claim_tile_row(float u0, float dv2, int i, float* d2s, int* owners) {
+#if defined(__SSE2__)
+  const __m128 v_dv2 = _mm_set1_ps(dv2), v_u0 = _mm_set1_ps(u0);
+  const __m128i v_i = _mm_set1_epi32(i);
+  for (int h = 0; h < 2; ++h) {
+    const __m128 k = h == 0 ? _mm_setr_ps(0.f, 1.f, 2.f, 3.f) : _mm_setr_ps(4.f, 5.f, 6.f, 7.f);
+    const __m128 du = _mm_add_ps(v_u0, k);
+    const __m128 d2 = _mm_add_ps(_mm_mul_ps(du, du), v_dv2);
+    const __m128 old = _mm_loadu_ps(d2s + 4 * h);
+    const __m128i nearer = _mm_castps_si128(_mm_cmplt_ps(d2, old));
+    _mm_storeu_ps(d2s + 4 * h, _mm_min_ps(d2, old));
+    __m128i* owner = reinterpret_cast<__m128i*>(owners + 4 * h);
+    const __m128i kept = _mm_andnot_si128(nearer, _mm_loadu_si128(owner));
+    _mm_storeu_si128(owner, _mm_or_si128(kept, _mm_and_si128(nearer, v_i)));
+  }
+#else
+  for (int k = 0; k < 8; ++k) {
+    const float du = u0 + static_cast<float>(k);
+    const float d2 = du * du + dv2;
+    const bool nearer = d2 < d2s[k];
+    d2s[k] = nearer ? d2 : d2s[k];
+    owners[k] = nearer ? i : owners[k];
+  }
+#endif
 }
 
 }  // namespace
@@ -62,14 +96,17 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     throw std::invalid_argument(os.str());
   }
   const int n = static_cast<int>(edge_points_px.size());
+  // Grid pixel of point i, rounded (coordinates relative to the grid are >= margin > 0, so
+  // truncating x + 0.5 rounds like lround, without the libm call).
+  const auto pixel_c = [&](int i) { return static_cast<int>(edge_points_px[i].x() - col_begin_ + 0.5); };
+  const auto pixel_r = [&](int i) { return static_cast<int>(edge_points_px[i].y() - row_begin_ + 0.5); };
 
   // Bucket the points in 4 x 4 px cells (linked lists), for the neighbour searches.
   constexpr int kCell = 4;
   const int cell_cols = cols_ / kCell + 1, cell_rows = rows_ / kCell + 1;
   std::vector<int> head(static_cast<size_t>(cell_cols) * cell_rows, -1), next(n, -1);
   for (int i = 0; i < n; ++i) {
-    const int c = static_cast<int>(std::lround(edge_points_px[i].x())) - col_begin_;
-    const int r = static_cast<int>(std::lround(edge_points_px[i].y())) - row_begin_;
+    const int c = pixel_c(i), r = pixel_r(i);
     const size_t idx = static_cast<size_t>(r / kCell) * cell_cols + c / kCell;
     next[i] = head[idx];
     head[idx] = i;
@@ -94,61 +131,105 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
     int count = 0;
-    for_points_near(static_cast<int>(std::lround(p.x())) - col_begin_,
-                    static_cast<int>(std::lround(p.y())) - row_begin_, reach, [&](int j) {
-                      const Eigen::Vector2d& q = edge_points_px[j];
-                      if ((q - p).squaredNorm() > radius2) return;
-                      mean += q;
-                      scatter += q * q.transpose();
-                      ++count;
-                    });
+    for_points_near(pixel_c(i), pixel_r(i), reach, [&](int j) {
+      const Eigen::Vector2d q = edge_points_px[j] - p;  // relative: no cancellation
+      if (q.squaredNorm() > radius2) return;
+      mean += q;
+      scatter += q * q.transpose();
+      ++count;
+    });
     if (count < 3) continue;  // isolated point: distance to the point itself
     mean /= count;
     scatter = scatter / count - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(scatter);
+    // Eigen-decomposition of the symmetric 2x2 scatter in closed form.
+    const double a = scatter(0, 0), b = scatter(0, 1), c = scatter(1, 1);
+    const double half_diff = 0.5 * (a - c), root = std::sqrt(half_diff * half_diff + b * b);
+    const double l_max = 0.5 * (a + c) + root, l_min = 0.5 * (a + c) - root;
     // A line needs one dominant direction; a blob of points has none.
-    if (eig.eigenvalues()(1) < 4.0 * eig.eigenvalues()(0)) continue;
-    normals[i] = eig.eigenvectors().col(0);
+    if (l_max < 4.0 * l_min) continue;
+    // Eigenvector of l_min: either row of (scatter - l_min I), rotated; take the better one.
+    const Eigen::Vector2d v1(b, l_min - a), v2(l_min - c, b);
+    const Eigen::Vector2d v = v1.squaredNorm() >= v2.squaredNorm() ? v1 : v2;
+    if (v.squaredNorm() == 0.0) continue;  // all neighbours coincide: no direction
+    normals[i] = v.normalized();
   }
 
-  // Exact nearest edge point of every node within band_px of an edge: each point claims
-  // the nodes of its (2 band + 1)^2 square that it is nearest to.
-  std::vector<int> nearest(static_cast<size_t>(cols_) * rows_, -1);
-  std::vector<float> nearest_d2(nearest.size(), std::numeric_limits<float>::infinity());
+  // Tiles that hold band nodes: those overlapping some point's (2 band + 1)^2 square.
   const int band = static_cast<int>(std::ceil(options.band_px));
+  const double band2 = options.band_px * options.band_px;
+  tile_cols_ = (cols_ + kTile - 1) >> kTileShift;
+  tile_rows_ = (rows_ + kTile - 1) >> kTileShift;
+  tile_slot_.assign(static_cast<size_t>(tile_cols_) * tile_rows_, -1);
+  struct Square {
+    int c_lo, c_hi, r_lo, r_hi;
+  };
+  std::vector<Square> squares(n);
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector2d& p = edge_points_px[i];
-    const int c0 = static_cast<int>(std::lround(p.x())) - col_begin_;
-    const int r0 = static_cast<int>(std::lround(p.y())) - row_begin_;
-    for (int r = std::max(0, r0 - band); r <= std::min(rows_ - 1, r0 + band); ++r) {
-      const double dy = r + row_begin_ - p.y();
-      for (int c = std::max(0, c0 - band); c <= std::min(cols_ - 1, c0 + band); ++c) {
-        const double dx = c + col_begin_ - p.x();
-        const float d2 = static_cast<float>(dx * dx + dy * dy);
-        const size_t idx = static_cast<size_t>(r) * cols_ + c;
-        if (d2 < nearest_d2[idx]) {
-          nearest_d2[idx] = d2;
-          nearest[idx] = i;
-        }
+    const int c0 = pixel_c(i), r0 = pixel_r(i);
+    Square& q = squares[i];
+    q = {std::max(0, c0 - band), std::min(cols_ - 1, c0 + band), std::max(0, r0 - band),
+         std::min(rows_ - 1, r0 + band)};
+    for (int tr = q.r_lo >> kTileShift; tr <= q.r_hi >> kTileShift; ++tr)
+      for (int tc = q.c_lo >> kTileShift; tc <= q.c_hi >> kTileShift; ++tc)
+        tile_slot_[static_cast<size_t>(tr) * tile_cols_ + tc] = 0;
+  }
+  int num_tiles = 0;
+  for (int& slot : tile_slot_) slot = slot == 0 ? num_tiles++ : -1;
+  const size_t num_nodes = static_cast<size_t>(num_tiles) * kTileNodes;
+
+  // Exact nearest edge point of every node within band_px of an edge: each point claims
+  // the nodes of its square that it is nearest to (ties to the lower index). The square's
+  // rows are widened to whole tile rows (8 contiguous nodes, vectorised); nodes claimed
+  // from beyond band_px are dropped below (their nearest point may not have visited them).
+  static_assert(kTile == 8, "claim_tile_row() handles rows of 8 nodes");
+  std::vector<int> nearest(num_nodes, -1);
+  std::vector<float> nearest_d2(num_nodes, std::numeric_limits<float>::infinity());
+  for (int i = 0; i < n; ++i) {
+    // Relative to the grid origin, so that float keeps ~1e-5 px.
+    const float pu = static_cast<float>(edge_points_px[i].x() - col_begin_);
+    const float pv = static_cast<float>(edge_points_px[i].y() - row_begin_);
+    const Square& q = squares[i];
+    for (int r = q.r_lo; r <= q.r_hi; ++r) {
+      const float dv = static_cast<float>(r) - pv;
+      const float dv2 = dv * dv;
+      const size_t tile_row = static_cast<size_t>(r >> kTileShift) * tile_cols_;
+      const int row_in_tile = (r & (kTile - 1)) << kTileShift;
+      for (int tc = q.c_lo >> kTileShift; tc <= q.c_hi >> kTileShift; ++tc) {
+        const size_t base = static_cast<size_t>(tile_slot_[tile_row + tc]) * kTileNodes + row_in_tile;
+        float* d2s = nearest_d2.data() + base;
+        int* owners = nearest.data() + base;
+        claim_tile_row(static_cast<float>(tc << kTileShift) - pu, dv2, i, d2s, owners);
       }
     }
   }
   // A node is "inner" when the whole 4x4 bicubic stencil around it lies in the band.
   const float inner_d2 = static_cast<float>((options.band_px - 3.0) * (options.band_px - 3.0));
-  data_.assign(nearest.size() * 2, 0.0f);
-  inner_.assign(nearest.size(), 0);
+  data_.assign(num_nodes * 2, 0.0f);
+  inner_.assign(num_nodes, 0);
   tangent_reach_px_ = options.normal_radius_px;
-  for (int r = 0; r < rows_; ++r) {
-    for (int c = 0; c < cols_; ++c) {
-      const size_t idx = static_cast<size_t>(r) * cols_ + c;
-      const int best = nearest[idx];
-      if (best < 0) continue;
-      const Eigen::Vector2d x(c + col_begin_, r + row_begin_);
-      const Eigen::Vector2d offset = offset_from(x, edge_points_px[best], normals[best],
-                                                  options.normal_radius_px);
-      data_[2 * idx] = static_cast<float>(offset.x());
-      data_[2 * idx + 1] = static_cast<float>(offset.y());
-      inner_[idx] = nearest_d2[idx] <= inner_d2;
+  for (int tr = 0; tr < tile_rows_; ++tr) {
+    for (int tc = 0; tc < tile_cols_; ++tc) {
+      const int slot = tile_slot_[static_cast<size_t>(tr) * tile_cols_ + tc];
+      if (slot < 0) continue;
+      for (int k = 0; k < kTileNodes; ++k) {
+        const size_t idx = static_cast<size_t>(slot) * kTileNodes + k;
+        const int best = nearest[idx];
+        if (best < 0 || nearest_d2[idx] > band2) continue;
+        // The tangent-line offset, except beyond the end of an open edge (where the tangent
+        // line would continue the edge into empty space) and at isolated points (zero normal).
+        const double du = (tc << kTileShift) + (k & (kTile - 1)) + col_begin_ - edge_points_px[best].x();
+        const double dv = (tr << kTileShift) + (k >> kTileShift) + row_begin_ - edge_points_px[best].y();
+        const double nu = normals[best].x(), nv = normals[best].y();
+        double ou = du, ov = dv;
+        if (nu * nu + nv * nv >= 0.5 && std::abs(du * -nv + dv * nu) <= options.normal_radius_px) {
+          const double along = du * nu + dv * nv;
+          ou = along * nu;
+          ov = along * nv;
+        }
+        data_[2 * idx] = static_cast<float>(ou);
+        data_[2 * idx + 1] = static_cast<float>(ov);
+        inner_[idx] = nearest_d2[idx] <= inner_d2;
+      }
     }
   }
   points_ = edge_points_px;
@@ -159,8 +240,9 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
   std::vector<int> cell_of(n);
   search_start_.assign(static_cast<size_t>(search_cols_) * search_rows_ + 1, 0);
   for (int i = 0; i < n; ++i) {
-    const int c = static_cast<int>(std::floor(points_[i].x() - col_begin_)) / kSearchCell;
-    const int r = static_cast<int>(std::floor(points_[i].y() - row_begin_)) / kSearchCell;
+    // Relative coordinates are positive: truncation is floor.
+    const int c = static_cast<int>(points_[i].x() - col_begin_) / kSearchCell;
+    const int r = static_cast<int>(points_[i].y() - row_begin_) / kSearchCell;
     cell_of[i] = r * search_cols_ + c;
     ++search_start_[cell_of[i] + 1];
   }
@@ -215,17 +297,73 @@ void EdgeDistanceField::nearest_edge(const Eigen::Vector2d& px, Eigen::Vector2d*
   if (std::abs(d.x() * -normal->y() + d.y() * normal->x()) > tangent_reach_px_) normal->setZero();
 }
 
+void EdgeDistanceField::interpolate(double u, double v, double f[2], double df_du[2],
+                                    double df_dv[2]) const {
+  // floor() without the libm call (no SSE4.1 in the baseline ISA); u, v are in the band.
+  const auto floor_of = [](double a) {
+    const int i = static_cast<int>(a);
+    return static_cast<double>(a < i ? i - 1 : i);
+  };
+  const double u0 = floor_of(u), v0 = floor_of(v);
+  const int c = static_cast<int>(u0) - col_begin_, r = static_cast<int>(v0) - row_begin_;
+  double wu[4], dwu[4], wv[4], dwv[4];
+  catmull_rom_weights(u - u0, wu, dwu);
+  catmull_rom_weights(v - v0, wv, dwv);
+  // The 16 nodes, interleaved (du, dv). A stencil row lies in one tile when its four
+  // columns do (5 of 8 positions): one tile lookup and 8 contiguous floats.
+  float node[4][8];
+  const bool inside = r >= 1 && c >= 1 && r + 2 < rows_ && c + 2 < cols_;
+  for (int i = 0; i < 4; ++i) {
+    const int rr = r - 1 + i;
+    if (inside && ((c - 1) >> kTileShift) == ((c + 2) >> kTileShift)) {
+      const long idx = node_index(rr, c - 1);
+      if (idx >= 0) {
+        std::copy_n(data_.data() + 2 * idx, 8, node[i]);
+        continue;
+      }
+    }
+    for (int j = 0; j < 4; ++j) {
+      if (inside) {
+        const long idx = node_index(rr, c - 1 + j);
+        node[i][2 * j] = idx >= 0 ? data_[2 * idx] : 0.0f;
+        node[i][2 * j + 1] = idx >= 0 ? data_[2 * idx + 1] : 0.0f;
+        continue;
+      }
+      double value[2];
+      node_value(static_cast<int>(v0) - 1 + i, static_cast<int>(u0) - 1 + j, value);
+      node[i][2 * j] = static_cast<float>(value[0]);
+      node[i][2 * j + 1] = static_cast<float>(value[1]);
+    }
+  }
+  // Both components at once (packed doubles).
+  Eigen::Array2d value = Eigen::Array2d::Zero(), d_u = value, d_v = value;
+  for (int i = 0; i < 4; ++i) {
+    // Along the row first (value and d/du), then across the rows, as the ceres interpolator.
+    Eigen::Array2d row_value = Eigen::Array2d::Zero(), row_du = row_value;
+    for (int j = 0; j < 4; ++j) {
+      const Eigen::Array2d p(node[i][2 * j], node[i][2 * j + 1]);
+      row_value += wu[j] * p;
+      row_du += dwu[j] * p;
+    }
+    value += wv[i] * row_value;
+    d_u += wv[i] * row_du;
+    d_v += dwv[i] * row_value;
+  }
+  for (int k = 0; k < 2; ++k) {
+    f[k] = value[k];
+    if (df_du != nullptr) df_du[k] = d_u[k];
+    if (df_dv != nullptr) df_dv[k] = d_v[k];
+  }
+}
+
 Eigen::Vector2d EdgeDistanceField::offset(const Eigen::Vector2d& px) const {
   if (!in_band(px.x(), px.y())) {
     Eigen::Vector2d p, n;
     nearest_edge(px, &p, &n);
     return n.squaredNorm() > 0.5 ? Eigen::Vector2d((px - p).dot(n) * n) : Eigen::Vector2d(px - p);
   }
-  const ceres::Grid2D<float, 2> grid(data_.data(), row_begin_, row_begin_ + rows_, col_begin_,
-                                     col_begin_ + cols_);
-  const ceres::BiCubicInterpolator<ceres::Grid2D<float, 2>> interpolator(grid);
   double f[2];
-  interpolator.Evaluate(px.y(), px.x(), f);
+  interpolate(px.x(), px.y(), f, nullptr, nullptr);
   return {f[0], f[1]};
 }
 

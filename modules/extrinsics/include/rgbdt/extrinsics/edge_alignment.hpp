@@ -7,9 +7,10 @@
 ///
 /// Two methods:
 ///  - kSmoothField (default, ours): exact sub-pixel distance field (EdgeDistanceField),
-///    bicubic interpolation (ceres::BiCubicInterpolator), automatic derivatives through the
-///    full projection with distortion (core::project_generic), Huber loss, outlier views
-///    rejected by their residual, closed-form initial guess when none is given.
+///    bicubic interpolation (ceres::BiCubicInterpolator), an exact analytic Jacobian through
+///    the full projection with distortion (core::project_generic's model), Huber loss,
+///    coarse-to-fine over the circle points, outlier views rejected by their residual,
+///    closed-form initial guess when none is given.
 ///  - kPaperPlaneFit (the paper's exact variant, for comparison): cv::distanceTransform of
 ///    the rasterised edges, a least-squares plane fitted on the 10x10 window around each
 ///    pixel the points fall on (cached in a look-up table), central numeric differences,
@@ -47,6 +48,10 @@ struct EdgeAlignmentOptions {
   /// ellipse centres (needs >= 3 holes with both). Widens the basin of convergence from a
   /// poor user guess; turn off to study Eq. (2) alone. (Not used by kPaperPlaneFit.)
   bool coarse_center_stage = true;
+  /// Coarse-to-fine (kSmoothField): each solve first runs on every coarse_stride-th circle
+  /// point of each view, then polishes on all points (same minimum, a fraction of the
+  /// cost). 1 solves on all points from the start.
+  int coarse_stride = 16;
   /// Window of the paper's plane fit [px] (kPaperPlaneFit); the paper uses 10.
   int paper_window_px = 10;
 
@@ -60,8 +65,8 @@ struct EdgeAlignmentOptions {
   /// A view is unusable when fewer than this fraction of its circle points project into
   /// the image at the initial guess and again at the solution.
   double min_in_image_fraction = 0.5;
-  /// Fill EdgeAlignmentResult::covariance (ceres::Covariance, scaled by the residual
-  /// variance). Off saves a few milliseconds per solve.
+  /// Fill EdgeAlignmentResult::covariance ((J^T J)^-1 of the residuals at the solution,
+  /// scaled by the residual variance). Off saves ~0.1 ms per solve.
   bool compute_covariance = true;
 
   std::string validate() const;  ///< empty when valid, else the reason
@@ -83,7 +88,7 @@ struct EdgeAlignmentResult {
   Eigen::Isometry3d T_camera_lidar_initial = Eigen::Isometry3d::Identity();  ///< start
   bool initial_from_closed_form = false;  ///< true when no guess was given
   core::Matrix6d covariance = core::Matrix6d::Zero();  ///< [rx ry rz tx ty tz], rad^2, m^2
-  bool covariance_valid = false;
+  bool covariance_valid = false;  ///< computed and full rank (every parameter observable)
   bool converged = false;      ///< solver reached a tolerance (not max_iterations/failure)
   int iterations = 0;          ///< LM iterations, summed over outlier-rejection rounds
   double rms_px = 0.0;         ///< RMS point-to-edge distance over the used views [px]

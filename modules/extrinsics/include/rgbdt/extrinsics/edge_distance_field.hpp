@@ -9,9 +9,10 @@
 /// distance to the curve up to O(spacing^2 * curvature), and it is linear across the edge,
 /// so bicubic interpolation reproduces it exactly near the edge (a sampled |d| would be
 /// biased by up to ~0.15 px towards the grid nodes). The grid is filled only in a narrow
-/// band around the edges (cheap to build); outside the band the same quantity is computed
-/// exactly from the nearest edge point (brute force), so points projected far from the
-/// target, even outside the image, still feel the true distance and its gradient.
+/// band around the edges, stored in 8 x 8 node tiles that hold band nodes (cheap to build);
+/// outside the band the same quantity is computed exactly from the nearest edge point (a
+/// ring search over 16 px cells), so points projected far from the target, even outside
+/// the image, still feel the true distance and its gradient.
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
@@ -21,10 +22,11 @@
 namespace rgbdt::extrinsics {
 
 struct EdgeFieldOptions {
-  /// Half-width of the interpolated band around the edges [px]. Points beyond it use the
-  /// exact nearest-point form (slower per evaluation, same values), so this only trades
-  /// build time against evaluation time; raise it when residuals stay large (noisy edges).
-  double band_px = 6.0;
+  /// Half-width of the interpolated band around the edges [px]; bicubic is used within
+  /// band_px - 3 of an edge. Points beyond it use the exact nearest-point form (slower per
+  /// evaluation, same values), so this only trades build time against evaluation time;
+  /// raise it when residuals stay large (noisy edges).
+  double band_px = 5.0;
   /// Neighbourhood radius for the edge normals [px]; raise it for noisy edge points.
   double normal_radius_px = 3.0;
   /// Refuse grids with more nodes than this (guards against stray far-away edge points).
@@ -39,18 +41,39 @@ class EdgeDistanceField {
   explicit EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_points_px,
                              const EdgeFieldOptions& options = {});
 
-  int col_begin() const { return col_begin_; }  ///< u of the first grid column [px]
-  int row_begin() const { return row_begin_; }  ///< v of the first grid row [px]
-  int cols() const { return cols_; }
-  int rows() const { return rows_; }
-  /// Interleaved (du, dv) per node, row-major, float to halve memory.
-  const std::vector<float>& data() const { return data_; }
+  /// The band as a grid for ceres::BiCubicInterpolator (row = v, column = u [px]). Nodes
+  /// outside the band read as zero, so interpolate only where in_band() holds (there the
+  /// whole 4x4 stencil lies in the band).
+  struct Grid {
+    enum { DATA_DIMENSION = 2 };
+    const EdgeDistanceField* field;
+    void GetValue(int v, int u, double* f) const { field->node_value(v, u, f); }
+  };
+  Grid grid() const { return Grid{this}; }
 
   /// True when the bicubic stencil at the pixel lies in the filled band.
   bool in_band(double u, double v) const {
-    const long c = std::lround(u) - col_begin_, r = std::lround(v) - row_begin_;
-    return c >= 0 && r >= 0 && c < cols_ && r < rows_ && inner_[static_cast<size_t>(r) * cols_ + c];
+    // Range check in double first: far-off or non-finite projections must not reach the
+    // integer conversion.
+    const double x = u - col_begin_ + 0.5, y = v - row_begin_ + 0.5;
+    if (!(x >= 0.0 && y >= 0.0 && x < cols_ && y < rows_)) return false;
+    const long idx = node_index(static_cast<int>(y), static_cast<int>(x));
+    return idx >= 0 && inner_[static_cast<size_t>(idx)];
   }
+  /// Offset stored at grid node (v, u) [px], zero outside the band.
+  void node_value(int v, int u, double* f) const {
+    const int r = v - row_begin_, c = u - col_begin_;
+    const long idx = (r >= 0 && c >= 0 && r < rows_ && c < cols_) ? node_index(r, c) : -1;
+    f[0] = idx >= 0 ? data_[2 * static_cast<size_t>(idx)] : 0.0;
+    f[1] = idx >= 0 ? data_[2 * static_cast<size_t>(idx) + 1] : 0.0;
+  }
+  /// Nodes stored (the tiles that hold the band), for tests and memory accounting.
+  long num_stored_nodes() const { return static_cast<long>(inner_.size()); }
+
+  /// Bicubic (Catmull-Rom) interpolation of the band at (u, v), the interpolant of
+  /// ceres::BiCubicInterpolator over grid(), with its gradient, in one pass over the 4x4
+  /// stencil. Call only where in_band(u, v) holds.
+  void interpolate(double u, double v, double f[2], double df_du[2], double df_dv[2]) const;
   /// The offset vector at a pixel: bicubic inside the band, exact outside.
   Eigen::Vector2d offset(const Eigen::Vector2d& px) const;
   /// Exact form at any pixel: the nearest edge point and its unit normal; the normal is
@@ -61,9 +84,20 @@ class EdgeDistanceField {
   double distance_px(const Eigen::Vector2d& px) const { return offset(px).norm(); }
 
  private:
-  int col_begin_ = 0, row_begin_ = 0, cols_ = 0, rows_ = 0;
-  std::vector<float> data_;
-  std::vector<uint8_t> inner_;
+  // The band is stored in kTile x kTile node tiles; only tiles that hold band nodes are
+  // allocated (a circle's band covers a fraction of its bounding box). tile_slot_ maps a
+  // tile of the bounding box to its block in data_ / inner_, or -1.
+  static constexpr int kTileShift = 3, kTile = 1 << kTileShift, kTileNodes = kTile * kTile;
+  long node_index(int r, int c) const {  // r, c relative to (row_begin_, col_begin_), in range
+    const int slot = tile_slot_[static_cast<size_t>(r >> kTileShift) * tile_cols_ + (c >> kTileShift)];
+    return slot < 0 ? -1
+                    : static_cast<long>(slot) * kTileNodes + ((r & (kTile - 1)) << kTileShift) + (c & (kTile - 1));
+  }
+  int col_begin_ = 0, row_begin_ = 0, cols_ = 0, rows_ = 0;  // bounding box of the band [px]
+  int tile_cols_ = 0, tile_rows_ = 0;
+  std::vector<int> tile_slot_;
+  std::vector<float> data_;     // interleaved (du, dv) per stored node, float to halve memory
+  std::vector<uint8_t> inner_;  // per stored node: its bicubic stencil lies in the band
   std::vector<Eigen::Vector2d> points_, normals_;
   double tangent_reach_px_ = 3.0;
   // Edge points bucketed in kSearchCell-px cells over the grid (CSR: the points of cell k

@@ -1,0 +1,146 @@
+#pragma once
+// Eq. (2) cost of one view for Ceres, ours (kSmoothField): the residual of every LIDAR
+// circle point is the 2-vector from the image edge to its projection (its norm is the
+// point-to-edge distance), with the Huber loss folded in. Private to the module; the tests
+// include it to check the analytic Jacobian against automatic differentiation.
+#include <ceres/ceres.h>
+#include <ceres/cubic_interpolation.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "projection.hpp"
+#include "rgbdt/extrinsics/edge_distance_field.hpp"
+
+namespace rgbdt::extrinsics::detail {
+
+inline double value_of(double x) { return x; }
+template <typename J>
+double value_of(const J& jet) {
+  return jet.a;
+}
+
+/// p_camera = R(x[0..2]) p_lidar + x[3..5] (angle-axis rotation), generic for autodiff.
+template <typename T>
+void transform_point(const T* x, const Eigen::Vector3d& p_lidar, T* p_camera) {
+  const T p[3] = {T(p_lidar.x()), T(p_lidar.y()), T(p_lidar.z())};
+  ceres::AngleAxisRotatePoint(x, p, p_camera);
+  p_camera[0] += x[3];
+  p_camera[1] += x[4];
+  p_camera[2] += x[5];
+}
+
+/// Field of one view, ready for the cost functions. The ceres interpolator serves the Jet
+/// path (the autodiff reference of the tests); evaluate() uses the field's own one-pass
+/// bicubic, the same interpolant.
+struct SmoothView {
+  using Interpolator = ceres::BiCubicInterpolator<EdgeDistanceField::Grid>;
+  SmoothView(const std::vector<Eigen::Vector2d>& edges, const EdgeFieldOptions& o)
+      : field(edges, o), grid(field.grid()), interpolator(grid) {}
+  SmoothView(const SmoothView&) = delete;  // the interpolator refers to this grid
+  SmoothView& operator=(const SmoothView&) = delete;
+  /// Offset f (edge -> pixel) at (u, v) and, when J is given, df/d(u, v) (row-major 2x2):
+  /// bicubic (value and exact gradient) in the band, the nearest-edge form outside it.
+  void evaluate(double u, double v, double f[2], double J[4]) const;
+
+  EdgeDistanceField field;
+  EdgeDistanceField::Grid grid;  // the interpolator keeps a reference to it
+  Interpolator interpolator;
+};
+
+/// The residual of one point as a template, so that Jets can differentiate it (the
+/// reference the analytic Jacobian of ViewEdgeCost is tested against).
+template <typename T>
+void smooth_edge_residual(const ProjectionModel& cam, const SmoothView& view, const T* p_camera,
+                          T* residual) {
+  T uv[2];
+  project_total(cam, p_camera, uv);
+  const EdgeDistanceField& f = view.field;
+  const double u = value_of(uv[0]), v = value_of(uv[1]);
+  if (f.in_band(u, v)) {
+    view.interpolator.Evaluate(uv[1], uv[0], residual);
+    return;
+  }
+  Eigen::Vector2d p, n;
+  f.nearest_edge({u, v}, &p, &n);
+  const T du = uv[0] - T(p.x()), dv = uv[1] - T(p.y());
+  if (n.squaredNorm() > 0.5) {
+    const T along = du * T(n.x()) + dv * T(n.y());
+    residual[0] = along * T(n.x());
+    residual[1] = along * T(n.y());
+  } else {
+    residual[0] = du;
+    residual[1] = dv;
+  }
+}
+
+/// Huber folded into a 2-vector residual: r' = r sqrt(rho(s) / s), s = |r|^2, so that
+/// |r'|^2 = rho(s), the objective of a per-point ceres::HuberLoss.
+template <typename T>
+void apply_huber(double huber_px, T* r) {
+  if (huber_px <= 0.0) return;
+  using std::sqrt;
+  const T s = r[0] * r[0] + r[1] * r[1];
+  const double delta2 = huber_px * huber_px;
+  if (value_of(s) <= delta2) return;
+  // rho(s) = 2 delta sqrt(s) - delta^2 beyond delta^2.
+  const T norm = sqrt(s);
+  const T scale = sqrt((T(2.0 * huber_px) * norm - T(delta2)) / s);
+  r[0] *= scale;
+  r[1] *= scale;
+}
+
+/// All points of one view in one cost function (Ceres' per-block overhead dominates with
+/// one block per point), parameter block [rx ry rz tx ty tz] (angle-axis, metres).
+/// Analytic Jacobian: d(residual)/d(x) = d(huber)/d(r) * d(field)/d(uv) * d(uv)/d(p_camera)
+/// * d(p_camera)/d(x); the rotation's derivatives are computed once per evaluation.
+class ViewEdgeCost : public ceres::CostFunction {
+ public:
+  /// The pointees must outlive the cost function.
+  ViewEdgeCost(const ProjectionModel* cam, const SmoothView* view,
+               const std::vector<Eigen::Vector3d>* points, double huber_px);
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override;
+  /// Evaluate() at pose x, plus each point's pixel (2n, NaN for points not in front of the
+  /// camera) when uv is not null. jacobian may be null; it is row-major (2n x 6) when
+  /// jacobian_column_stride is 0, else column-major with that leading dimension (for a
+  /// stacked Eigen matrix of several views, jacobian pointing at this view's first row).
+  void evaluate_points(const double* x, double* uv, double* residuals, double* jacobian,
+                       long jacobian_column_stride = 0) const;
+  int num_points() const { return static_cast<int>(points_->size()); }
+
+ private:
+  const ProjectionModel* cam_;
+  const SmoothView* view_;
+  const std::vector<Eigen::Vector3d>* points_;
+  double huber_px_;
+};
+
+/// Eq. (2) over several views for ceres::TinySolver (dense LM without ceres::Problem's
+/// per-evaluation bookkeeping, which dominates a 6-parameter problem with thousands of
+/// residuals): the residuals of the views stacked, Jacobian column-major.
+class StackedEdgeCosts {
+ public:
+  using Scalar = double;
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 6 };
+  explicit StackedEdgeCosts(std::vector<const ViewEdgeCost*> costs) : costs_(std::move(costs)) {
+    for (const ViewEdgeCost* c : costs_) num_residuals_ += 2 * c->num_points();
+  }
+  int NumResiduals() const { return num_residuals_; }
+  bool operator()(const double* x, double* residuals, double* jacobian) const {
+    long row = 0;
+    for (const ViewEdgeCost* c : costs_) {
+      c->evaluate_points(x, nullptr, residuals + row, jacobian != nullptr ? jacobian + row : nullptr,
+                         num_residuals_);
+      row += 2 * c->num_points();
+    }
+    return true;
+  }
+
+ private:
+  std::vector<const ViewEdgeCost*> costs_;
+  int num_residuals_ = 0;
+};
+
+}  // namespace rgbdt::extrinsics::detail

@@ -1,0 +1,182 @@
+// The analytic Jacobian of our Eq. (2) cost (src/edge_cost.cpp) against automatic
+// differentiation of the same residual (Jets through the angle-axis rotation, the total
+// projection, the field and the Huber fold), at poses that exercise every branch: bicubic
+// band, nearest-edge form, Huber active, depth clamp.
+#include "../src/edge_cost.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "rgbdt/extrinsics/edge_alignment.hpp"
+
+#include "synthetic_views.hpp"
+
+namespace rgbdt::extrinsics {
+namespace {
+
+using Jet6 = ceres::Jet<double, 6>;
+
+struct Counts {
+  int in_band = 0, outside = 0, huber = 0, clamped = 0;
+};
+
+// Compares ViewEdgeCost with autodiff at x for every point of the view; counts which
+// branches the points took.
+void expect_same_jacobian(const detail::ProjectionModel& cam, const detail::SmoothView& view,
+                          const std::vector<Eigen::Vector3d>& points, double huber_px,
+                          const core::Vector6d& x, Counts* counts_out) {
+  const detail::ViewEdgeCost cost(&cam, &view, &points, huber_px);
+  const size_t n = points.size();
+  std::vector<double> r(2 * n), J(12 * n), r_only(2 * n);
+  const double* parameters[] = {x.data()};
+  double* jacobians[] = {J.data()};
+  EXPECT_TRUE(cost.Evaluate(parameters, r.data(), jacobians));
+  EXPECT_TRUE(cost.Evaluate(parameters, r_only.data(), nullptr));
+  Counts& counts = *counts_out;
+  Jet6 xj[6];
+  for (int k = 0; k < 6; ++k) xj[k] = Jet6(x[k], k);
+  for (size_t i = 0; i < n; ++i) {
+    Jet6 pc[3], ref[2];
+    detail::transform_point(xj, points[i], pc);
+    detail::smooth_edge_residual(cam, view, pc, ref);
+    const double f2 = ref[0].a * ref[0].a + ref[1].a * ref[1].a;
+    detail::apply_huber(huber_px, ref);
+    double uv[2];
+    const double pcd[3] = {pc[0].a, pc[1].a, pc[2].a};
+    detail::project_total(cam, pcd, uv);
+    counts.in_band += view.field.in_band(uv[0], uv[1]);
+    counts.outside += !view.field.in_band(uv[0], uv[1]);
+    counts.huber += huber_px > 0.0 && f2 > huber_px * huber_px;
+    counts.clamped += pcd[2] < detail::kMinDepthM;
+    for (int j = 0; j < 2; ++j) {
+      // Both evaluate the same expressions in another order (rotation matrix vs
+      // AngleAxisRotatePoint): agreement to rounding, ~1e-12 relative.
+      const double scale = 1.0 + std::abs(ref[j].a);
+      ASSERT_NEAR(r[2 * i + j], ref[j].a, 1e-9 * scale) << "point " << i;
+      ASSERT_NEAR(r_only[2 * i + j], ref[j].a, 1e-9 * scale) << "point " << i;
+      for (int k = 0; k < 6; ++k) {
+        ASSERT_NEAR(J[12 * i + 6 * j + k], ref[j].v[k], 1e-7 * (1.0 + std::abs(ref[j].v[k])))
+            << "point " << i << ", residual " << j << ", parameter " << k;
+      }
+    }
+  }
+}
+
+core::CameraIntrinsics equidistant_intrinsics() {
+  core::CameraIntrinsics in = testing::table1_intrinsics();
+  in.model = core::DistortionModel::kEquidistant;
+  in.distortion = {0.05, -0.01, 0.002, -0.0005};
+  return in;
+}
+
+struct Scene {
+  explicit Scene(const core::CameraIntrinsics& in = testing::table1_intrinsics(true)) : camera(in) {}
+  core::PinholeCamera camera;
+  Eigen::Isometry3d truth = testing::true_T_camera_lidar();
+  std::vector<TargetView> views = testing::make_views(camera, truth, testing::table1_placements());
+  detail::ProjectionModel cam = detail::make_projection_model(camera);
+};
+
+TEST(ViewEdgeCost, AnalyticJacobianEqualsAutodiffInEveryBranch) {
+  // Plumb-bob (closed-form projection Jacobian) and equidistant (Jets) cameras.
+  for (const auto& intrinsics : {testing::table1_intrinsics(true), equidistant_intrinsics()}) {
+    SCOPED_TRACE(core::to_string(intrinsics.model));
+    const Scene s(intrinsics);
+    Counts total;
+    // Near the truth (band), a few degrees and centimetres off (band edge, Huber), 30 deg
+    // off (nearest-edge form far away), and the LIDAR pushed behind the camera (depth clamp).
+    const std::vector<Eigen::Isometry3d> poses = {
+        s.truth, testing::offset_guess(s.truth, 0.3, -0.2, 0.1, 0.003, 0, 0.002),
+        testing::offset_guess(s.truth, 3, 0, 2, 0.05, 0, 0),
+        testing::offset_guess(s.truth, 30, 0, 0, 0, 0, 0),
+        testing::offset_guess(s.truth, 0, 0, 0, 7.0, 0, 0)};
+    for (const double huber_px : {0.0, 2.0}) {
+      for (size_t v = 0; v < s.views.size(); v += 3) {
+        const detail::SmoothView view(s.views[v].image_edge_points_px, {});
+        for (const auto& T : poses) {
+          expect_same_jacobian(s.cam, view, s.views[v].lidar_circle_points, huber_px,
+                               core::to_vector6(T), &total);
+          if (HasFatalFailure()) return;
+        }
+      }
+    }
+    // Every branch was taken by many points.
+    EXPECT_GT(total.in_band, 100);
+    EXPECT_GT(total.outside, 100);
+    EXPECT_GT(total.huber, 100);
+    EXPECT_GT(total.clamped, 100);
+  }
+}
+
+TEST(EdgeDistanceField, InterpolateEqualsCeresBiCubicInterpolator) {
+  // The field's one-pass bicubic must be ceres::BiCubicInterpolator's interpolant over the
+  // same grid, value and gradient, at every in-band pixel (tile borders included).
+  const Scene s;
+  const EdgeDistanceField field(s.views[0].image_edge_points_px);
+  const EdgeDistanceField::Grid grid = field.grid();
+  const ceres::BiCubicInterpolator<EdgeDistanceField::Grid> ceres_interpolator(grid);
+  std::mt19937 rng(5);
+  const auto& edges = s.views[0].image_edge_points_px;
+  std::uniform_int_distribution<size_t> pick(0, edges.size() - 1);
+  std::uniform_real_distribution<double> offset(-4.0, 4.0);  // [px], around the band
+  int checked = 0;
+  for (int i = 0; i < 200000 && checked < 5000; ++i) {
+    const Eigen::Vector2d& e = edges[pick(rng)];
+    const double u = e.x() + offset(rng), v = e.y() + offset(rng);
+    if (!field.in_band(u, v)) continue;
+    double f[2], df_du[2], df_dv[2], g[2], dg_dv[2], dg_du[2];
+    field.interpolate(u, v, f, df_du, df_dv);
+    ceres_interpolator.Evaluate(v, u, g, dg_dv, dg_du);
+    for (int k = 0; k < 2; ++k) {
+      // Same sums in another order: rounding only.
+      ASSERT_NEAR(f[k], g[k], 1e-12) << u << ", " << v;
+      ASSERT_NEAR(df_du[k], dg_du[k], 1e-12) << u << ", " << v;
+      ASSERT_NEAR(df_dv[k], dg_dv[k], 1e-12) << u << ", " << v;
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 5000);
+}
+
+TEST(ViewEdgeCost, AlignEdgesCovarianceEqualsCeresCovariance) {
+  // align_edges forms (J^T J)^-1 sigma^2 itself; ceres::Covariance (dense SVD) on the same
+  // residuals at the same pose must give the same matrix.
+  Scene s;
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.3);  // [px], so that sigma^2 is not ~0
+  for (auto& v : s.views)
+    for (auto& p : v.image_edge_points_px) p += Eigen::Vector2d(noise(rng), noise(rng));
+  const EdgeAlignmentResult r = align_edges(s.views, s.camera);
+  ASSERT_TRUE(r.covariance_valid) << r.message;
+  core::Vector6d x = core::to_vector6(r.T_camera_lidar);
+  std::vector<std::unique_ptr<detail::SmoothView>> fields;
+  ceres::Problem problem;
+  size_t count = 0;
+  for (const auto& v : s.views) {
+    fields.push_back(std::make_unique<detail::SmoothView>(v.image_edge_points_px, EdgeFieldOptions{}));
+    problem.AddResidualBlock(
+        new detail::ViewEdgeCost(&s.cam, fields.back().get(), &v.lidar_circle_points, 0.0), nullptr,
+        x.data());
+    count += v.lidar_circle_points.size();
+  }
+  ceres::Covariance::Options options;
+  options.algorithm_type = ceres::DENSE_SVD;
+  options.null_space_rank = -1;
+  ceres::Covariance covariance(options);
+  const std::vector<std::pair<const double*, const double*>> blocks = {{x.data(), x.data()}};
+  ASSERT_TRUE(covariance.Compute(blocks, &problem));
+  core::Matrix6d expected;
+  covariance.GetCovarianceBlock(x.data(), x.data(), expected.data());
+  expected *= r.rms_px * r.rms_px * count / static_cast<double>(count - 6);
+  // The pose goes through Isometry3d and back (~1e-16) and the two inversions differ by
+  // rounding; 1e-6 relative is far below any use of a covariance.
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j)
+      EXPECT_NEAR(r.covariance(i, j), expected(i, j),
+                  1e-6 * std::sqrt(expected(i, i) * expected(j, j)))
+          << "entry " << i << ", " << j;
+}
+
+}  // namespace
+}  // namespace rgbdt::extrinsics
