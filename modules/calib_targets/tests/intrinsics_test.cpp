@@ -184,14 +184,22 @@ TEST(Intrinsics, BadViewsAreRejectedWithReasons) {
   EXPECT_THROW(ct::pattern_type_from_string("hexagons"), std::invalid_argument);
 }
 
-// Real data: czha626 raw UAV thermal images (6x5 inner corners); plain OpenCV finds 1/47.
-TEST(IntrinsicsRealData, CzhaRawThermalDetection) {
-  const fs::path dir = fs::path(RGBDT_SHARED_DATA_DIR) / "czha626-thermal/Thermal camera calibration/Thermal Images";
-  ASSERT_TRUE(fs::exists(dir)) << "real data folder missing: " << dir << " (CI keeps ../shared beside the checkout)";
+namespace {
+// The czha626 board: 6x5 inner corners, 0.1 m squares.
+ct::PatternSpec czha_pattern() {
   ct::PatternSpec pattern;
   pattern.cols = 6;
   pattern.rows = 5;
   pattern.spacing_m = 0.1;
+  return pattern;
+}
+}  // namespace
+
+// Real data: czha626 raw UAV thermal images (6x5 inner corners); plain OpenCV finds 1/47.
+TEST(IntrinsicsRealData, CzhaRawThermalDetection) {
+  const fs::path dir = fs::path(RGBDT_SHARED_DATA_DIR) / "czha626-thermal/Thermal camera calibration/Thermal Images";
+  ASSERT_TRUE(fs::exists(dir)) << "real data folder missing: " << dir << " (CI keeps ../shared beside the checkout)";
+  const ct::PatternSpec pattern = czha_pattern();
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
   std::sort(files.begin(), files.end());
@@ -211,10 +219,7 @@ TEST(IntrinsicsRealData, CzhaRawThermalDetection) {
 TEST(IntrinsicsRealData, CzhaMaskedThermalCalibratesBelowPlainOpenCv) {
   const fs::path dir = fs::path(RGBDT_SHARED_DATA_DIR) / "czha626-thermal/Thermal camera calibration/Thermal images cropped";
   ASSERT_TRUE(fs::exists(dir)) << "real data folder missing: " << dir << " (CI keeps ../shared beside the checkout)";
-  ct::PatternSpec pattern;
-  pattern.cols = 6;
-  pattern.rows = 5;
-  pattern.spacing_m = 0.1;
+  const ct::PatternSpec pattern = czha_pattern();
 
   // Img20: every detected corner lies on a corner plain OpenCV finds (it finds this one).
   const cv::Mat img20 = cv::imread((dir / "Img20.jpg").string(), cv::IMREAD_GRAYSCALE);

@@ -41,18 +41,9 @@ void BM_AssembleSteadyState(benchmark::State& state) {
   for (auto _ : state) {
     tilt_lidar::Assembler a(rig);
     std::size_t points = 0;
-    auto take = [&points](std::vector<tilt_lidar::TiltCloud>&& v) {
-      for (const auto& c : v) points += c.cloud->size();
-    };
-    std::size_t e = 0;
-    const double scan_len = rig.scanner.scan_period_s;
-    for (const auto& scan : stream.scans) {
-      while (e < stream.encoder.size() && stream.encoder[e].time_s <= scan.time_s + scan_len) {
-        take(a.add_encoder_sample(stream.encoder[e++]));
-      }
-      take(a.add_scan(scan));
-    }
-    take(a.flush());
+    test::feed_each(a, stream, [&points](std::vector<tilt_lidar::TiltCloud>&& v) {
+      for (const auto& c : v) points += c.cloud->size();  // released here, as a consumer would
+    });
     benchmark::DoNotOptimize(points);
     tilts = a.stats().tilts;
   }

@@ -82,12 +82,10 @@ inline Eigen::Vector3d true_point(const core::TiltRig& rig, const MotionProfile&
   return rig.T_lidar_scanner(m.phi(t)) * Eigen::Vector3d(r * std::cos(th), r * std::sin(th), 0.0);
 }
 
-/// Feeds the stream in arrival order: an encoder sample when taken, a scan when complete.
-inline std::vector<tilt_lidar::TiltCloud> feed(tilt_lidar::Assembler& a, const Stream& s) {
-  std::vector<tilt_lidar::TiltCloud> out;
-  auto take = [&out](std::vector<tilt_lidar::TiltCloud>&& v) {
-    for (auto& c : v) out.push_back(std::move(c));
-  };
+/// Feeds the stream in arrival order (an encoder sample when taken, a scan when complete),
+/// handing each batch of finished tilts to `take` as the assembler emits it.
+template <typename Take>
+void feed_each(tilt_lidar::Assembler& a, const Stream& s, Take&& take) {
   std::size_t e = 0;
   const double scan_len = a.rig().scanner.scan_period_s;
   for (const auto& scan : s.scans) {
@@ -96,6 +94,14 @@ inline std::vector<tilt_lidar::TiltCloud> feed(tilt_lidar::Assembler& a, const S
   }
   while (e < s.encoder.size()) take(a.add_encoder_sample(s.encoder[e++]));
   take(a.flush());
+}
+
+/// feed_each, keeping every tilt.
+inline std::vector<tilt_lidar::TiltCloud> feed(tilt_lidar::Assembler& a, const Stream& s) {
+  std::vector<tilt_lidar::TiltCloud> out;
+  feed_each(a, s, [&out](std::vector<tilt_lidar::TiltCloud>&& v) {
+    for (auto& c : v) out.push_back(std::move(c));
+  });
   return out;
 }
 
