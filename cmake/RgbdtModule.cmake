@@ -54,6 +54,8 @@ function(rgbdt_add_tests module)
     get_filename_component(test_name ${file} NAME_WE)
     add_executable(${test_name} ${file})
     target_link_libraries(${test_name} PRIVATE rgbdt::${module} ${ARG_LIBS} GTest::gtest_main GTest::gmock)
+    # Helpers every module's tests share (rgbdt/test/test_util.hpp).
+    target_include_directories(${test_name} PRIVATE ${PROJECT_SOURCE_DIR}/tests/support)
     target_compile_definitions(${test_name} PRIVATE
       RGBDT_SHARED_DATA_DIR="${RGBDT_SHARED_DATA_DIR}"
       RGBDT_SOURCE_DIR="${PROJECT_SOURCE_DIR}"

@@ -16,6 +16,8 @@
 
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/thermal_camera/tau2.hpp"
+#include "rgbdt/test/process.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 extern char** environ;
 namespace fs = std::filesystem;
@@ -23,36 +25,13 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-std::string program() {
-  const char* dir = std::getenv("RGBDT_BIN_DIR");
-  return std::string(dir != nullptr ? dir : RGBDT_BINARY_DIR "/bin") + "/rgbdt_camera";
-}
+std::string program() { return rgbdt::test::built_program("rgbdt_camera"); }
 
-fs::path temp_dir(const std::string& name) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+using rgbdt::test::temp_dir;
 
 /// Starts the program with its output in `log`; returns the pid.
 pid_t spawn(const std::vector<std::string>& args, const fs::path& log) {
-  std::vector<std::string> all = {program()};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&actions, 1, 2);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  EXPECT_EQ(rc, 0) << "cannot run " << argv[0];
-  return pid;
+  return rgbdt::test::spawn_with_log(program(), args, log);
 }
 
 /// Waits for the process at most `limit`; kills it (and fails) if it takes longer.

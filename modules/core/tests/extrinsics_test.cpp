@@ -2,7 +2,7 @@
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
-#include "test_util.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 using namespace rgbdt::core;
 using rgbdt::test::expect_error_mentions;

@@ -3,7 +3,7 @@
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/tilt_rig.hpp"
 #include "rgbdt/core/transform.hpp"
-#include "test_util.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 using namespace rgbdt::core;
 

@@ -17,6 +17,7 @@
 #include "rgbdt/core/extrinsics.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/core/time_index.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 namespace fs = std::filesystem;
 
@@ -25,14 +26,7 @@ namespace {
 
 using namespace test;  // NOLINT: the scene helpers
 
-fs::path temp_dir(const std::string& name) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
+using rgbdt::test::temp_dir;
 
 std::string app_path() {
   const char* bin = std::getenv("RGBDT_BIN_DIR");

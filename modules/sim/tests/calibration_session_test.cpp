@@ -14,19 +14,13 @@
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/core/transform.hpp"
 #include "rgbdt/sim/calibration_session.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 namespace rgbdt::sim {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
-  fs::remove_all(dir);
-  return dir;
-}
 
 std::string read_bytes(const fs::path& p) {
   std::ifstream f(p, std::ios::binary);
@@ -51,7 +45,7 @@ CalibrationSessionOptions small_options() {
 }
 
 TEST(CalibrationSession, WritesEveryFileOfTheContractReadableByCore) {
-  const fs::path dir = temp_dir("session");
+  const fs::path dir = test::temp_path("session");
   const CalibrationSessionOptions options = small_options();
   const CalibrationSessionResult result = write_calibration_session(dir.string(), options);
   ASSERT_EQ(result.views.size(), 2u);
@@ -88,7 +82,7 @@ TEST(CalibrationSession, WritesEveryFileOfTheContractReadableByCore) {
 }
 
 TEST(CalibrationSession, GroundTruthAgreesWithTheCloudsAndTheContract) {
-  const fs::path dir = temp_dir("session");
+  const fs::path dir = test::temp_path("session");
   CalibrationSessionOptions options = small_options();
   options.rig.lidar.mixed_pixels = false;
   write_calibration_session(dir.string(), options);
@@ -133,7 +127,7 @@ TEST(CalibrationSession, SameSeedGivesIdenticalFiles) {
   CalibrationSessionOptions options = small_options();
   options.views = 1;
   options.supersampling = 1;
-  const fs::path a = temp_dir("a"), b = temp_dir("b"), c = temp_dir("c");
+  const fs::path a = test::temp_path("a"), b = test::temp_path("b"), c = test::temp_path("c");
   write_calibration_session(a.string(), options);
   write_calibration_session(b.string(), options);
   options.seed = 6;
@@ -145,7 +139,7 @@ TEST(CalibrationSession, SameSeedGivesIdenticalFiles) {
 }
 
 TEST(CalibrationSession, FourHoleBoardListsHolesRowMajorFromTheTopLeft) {
-  const fs::path dir = temp_dir("four");
+  const fs::path dir = test::temp_path("four");
   CalibrationSessionOptions options = small_options();
   options.views = 1;
   options.holes = 4;
@@ -164,7 +158,7 @@ TEST(CalibrationSession, RejectsBadOptionsNamingTheValue) {
   CalibrationSessionOptions options;
   options.holes = 3;
   try {
-    write_calibration_session(temp_dir("bad").string(), options);
+    write_calibration_session(test::temp_path("bad").string(), options);
     ADD_FAILURE() << "no exception";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("holes 3"), std::string::npos) << e.what();

@@ -10,19 +10,13 @@
 
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/sim/checkerboard_session.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 namespace rgbdt::sim {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
-  fs::remove_all(dir);
-  return dir;
-}
 
 // Warm (black melamine) squares are bright in the counts; inverted, the board looks as in
 // the visible band (dark squares, light margin), which is what corner detectors expect.
@@ -33,7 +27,7 @@ cv::Mat to_8bit_inverted(const cv::Mat& counts) {
 }
 
 TEST(CheckerboardSession, ThermalCornersMatchTruthAndCalibrationRecoversIntrinsics) {
-  const fs::path dir = temp_dir("thermal");
+  const fs::path dir = test::temp_path("thermal");
   CheckerboardSessionOptions options;
   options.camera = "thermal";
   options.views = 12;
@@ -101,7 +95,7 @@ TEST(CheckerboardSession, ThermalCornersMatchTruthAndCalibrationRecoversIntrinsi
 }
 
 TEST(CheckerboardSession, BlackSquaresAreWarmerThanWhiteInTheSun) {
-  const fs::path dir = temp_dir("warm");
+  const fs::path dir = test::temp_path("warm");
   CheckerboardSessionOptions options;
   options.views = 1;
   options.supersampling = 1;

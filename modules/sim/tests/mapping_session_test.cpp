@@ -17,19 +17,13 @@
 #include "rgbdt/core/transform.hpp"
 #include "rgbdt/sim/mapping_session.hpp"
 #include "rgbdt/sim/rawlog.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 namespace rgbdt::sim {
 namespace {
 
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
-  fs::remove_all(dir);
-  return dir;
-}
 
 MappingSessionOptions small_mapping() {
   MappingSessionOptions o;
@@ -133,7 +127,7 @@ void rawlog_is_readable_by_mrpt_rawlog_edit() {
 }
 
 TEST(MappingSession, ShortSessionIsCompleteConsistentAndReadableByMrpt) {
-  mapping_dir_ = temp_dir("session");
+  mapping_dir_ = test::temp_path("session");
   const MappingSessionResult r = write_mapping_session(mapping_dir_.string(), small_mapping());
   EXPECT_EQ(r.clouds, 2);
   {
@@ -158,7 +152,7 @@ TEST(MappingSession, SameSeedSameRawStream) {
   MappingSessionOptions o = small_mapping();
   o.duration_s = 0.3;
   o.write_images = false;
-  const fs::path a = temp_dir("a"), b = temp_dir("b");
+  const fs::path a = test::temp_path("a"), b = test::temp_path("b");
   write_mapping_session(a.string(), o);
   write_mapping_session(b.string(), o);
   const RawlogContents ra = read_rawlog((a / "lidar.rawlog").string()), rb = read_rawlog((b / "lidar.rawlog").string());
@@ -198,7 +192,7 @@ void cloud_points_match_the_raw_scans_and_the_trajectory_is_smooth() {
 }
 
 TEST(ColoringSetup, CardPointsLieAtEachDepthAndFramesShareTheCloudTimes) {
-  const fs::path dir = temp_dir("setup");
+  const fs::path dir = test::temp_path("setup");
   ColoringSetupOptions o;
   o.depths_m = {5.0, 12.0};
   o.supersampling = 1;

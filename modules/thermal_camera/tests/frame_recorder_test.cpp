@@ -6,19 +6,13 @@
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/thermal_camera/frame_recorder.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 using namespace rgbdt::thermal_camera;
 namespace fs = std::filesystem;
 
 namespace {
 
-fs::path temp_dir(const std::string& name) {
-  const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" /
-                       (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
-  fs::remove_all(dir);
-  return dir;
-}
 
 Frame make_frame(int type, const std::string& format, int seed) {
   Frame f;
@@ -38,7 +32,7 @@ size_t count_files(const fs::path& dir, const std::string& ext) {
 }  // namespace
 
 TEST(FrameRecorder, SixteenBitFramesRoundTripExactlyWithTheirTimes) {
-  const fs::path dir = temp_dir("rec");
+  const fs::path dir = rgbdt::test::temp_path("rec");
   std::vector<Frame> frames;
   {
     FrameRecorderOptions o;
@@ -62,7 +56,7 @@ TEST(FrameRecorder, SixteenBitFramesRoundTripExactlyWithTheirTimes) {
 }
 
 TEST(FrameRecorder, WritesMono8AsGreyAndBayerAsColour) {
-  const fs::path dir = temp_dir("rec");
+  const fs::path dir = rgbdt::test::temp_path("rec");
   FrameRecorderOptions o;
   o.out_dir = dir.string();
   FrameRecorder recorder(o);
@@ -73,7 +67,7 @@ TEST(FrameRecorder, WritesMono8AsGreyAndBayerAsColour) {
 }
 
 TEST(FrameRecorder, IndexListsFramesBeforeTheRecorderCloses) {
-  const fs::path dir = temp_dir("rec");
+  const fs::path dir = rgbdt::test::temp_path("rec");
   FrameRecorderOptions o;
   o.out_dir = dir.string();
   o.index_flush_interval_s = 0.0;  // every frame
@@ -85,7 +79,7 @@ TEST(FrameRecorder, IndexListsFramesBeforeTheRecorderCloses) {
 }
 
 TEST(FrameRecorder, RefusesToOverwriteARecording) {
-  const fs::path dir = temp_dir("rec");
+  const fs::path dir = rgbdt::test::temp_path("rec");
   FrameRecorderOptions o;
   o.out_dir = dir.string();
   { FrameRecorder first(o); }

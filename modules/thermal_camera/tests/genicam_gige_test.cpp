@@ -19,6 +19,7 @@
 #include "rgbdt/core/time_index.hpp"
 
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/test/process.hpp"
 #include "rgbdt/thermal_camera/genicam_camera.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -182,22 +183,7 @@ namespace {
 namespace fs = std::filesystem;
 
 pid_t spawn_recorder(const std::vector<std::string>& args, const fs::path& log) {
-  const char* dir = std::getenv("RGBDT_BIN_DIR");
-  std::vector<std::string> all = {std::string(dir != nullptr ? dir : RGBDT_BINARY_DIR "/bin") +
-                                  "/rgbdt_camera"};
-  all.insert(all.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : all) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&actions, 1, 2);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&actions);
-  EXPECT_EQ(rc, 0) << "cannot run " << argv[0];
-  return pid;
+  return rgbdt::test::spawn_with_log(rgbdt::test::built_program("rgbdt_camera"), args, log);
 }
 
 std::string slurp(const fs::path& p) {

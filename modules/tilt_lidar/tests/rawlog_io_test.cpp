@@ -10,7 +10,7 @@
 
 #include "rgbdt/core/error.hpp"
 #include "stream_fixture.hpp"
-#include "test_util.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 namespace rgbdt::tilt_lidar {
 namespace {

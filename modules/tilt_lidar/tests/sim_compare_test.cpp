@@ -12,7 +12,7 @@
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/sim/mapping_session.hpp"
 #include "rgbdt/tilt_lidar/rawlog_io.hpp"
-#include "test_util.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 namespace rgbdt::tilt_lidar {
 namespace {

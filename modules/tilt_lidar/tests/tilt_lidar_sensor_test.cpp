@@ -13,7 +13,7 @@
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/tilt_lidar/emulated_rig.hpp"
 #include "rgbdt/tilt_lidar/rawlog_io.hpp"
-#include "test_util.hpp"
+#include "rgbdt/test/test_util.hpp"
 
 namespace rgbdt::tilt_lidar {
 namespace {

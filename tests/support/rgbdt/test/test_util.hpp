@@ -1,5 +1,6 @@
 #pragma once
-// Helpers shared by core's tests: a fresh temporary folder and file writing.
+// Helpers shared by every module's tests (rgbdt_add_tests puts tests/support on the include
+// path): per-test scratch folders under <build>/test_tmp, file writing, error checks.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -8,11 +9,19 @@
 
 namespace rgbdt::test {
 
-inline std::filesystem::path temp_dir(const std::string& name) {
+/// <build>/test_tmp/<suite>.<test>.<name>, removed and not created: for writers that make
+/// their own output folder. Under the build folder, so two builds' suites never collide.
+inline std::filesystem::path temp_path(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
   const std::filesystem::path dir = std::filesystem::path(RGBDT_BINARY_DIR) / "test_tmp" /
                                     (std::string(info->test_suite_name()) + "." + info->name() + "." + name);
   std::filesystem::remove_all(dir);
+  return dir;
+}
+
+/// temp_path(name), created empty.
+inline std::filesystem::path temp_dir(const std::string& name) {
+  const std::filesystem::path dir = temp_path(name);
   std::filesystem::create_directories(dir);
   return dir;
 }
