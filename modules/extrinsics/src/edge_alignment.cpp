@@ -3,7 +3,6 @@
 #include <ceres/ceres.h>
 #include <ceres/cubic_interpolation.h>
 #include <ceres/rotation.h>
-#include <ceres/tiny_solver.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -16,6 +15,7 @@
 #include <stdexcept>
 
 #include "edge_cost.hpp"
+#include "lm_polish.hpp"
 #include "projection.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/extrinsics/initial_guess.hpp"
@@ -167,37 +167,13 @@ double median_of(std::vector<double> v) {
   return v[mid];
 }
 
-struct ViewFit {
-  std::vector<double> distances_px;  // per point (inf when behind the camera)
-  int in_image = 0;
-  core::Matrix6d JtJ = core::Matrix6d::Zero();  // of the non-robust residuals, when asked
-};
-
-/// Distances (the Huber-free Eq. (2) residuals) of a view's points at x, and J^T J of those
-/// residuals in the same pass when with_jacobian (for the covariance).
-ViewFit fit_of_view(const std::vector<Eigen::Vector3d>& points, const SmoothView& view,
-                    const ProjectionModel& cam, const core::PinholeCamera& camera,
-                    const core::Vector6d& x, bool with_jacobian) {
-  const size_t n = points.size();
-  const ViewEdgeCost cost(&cam, &view, &points, 0.0);
-  std::vector<double> uv(2 * n), residuals(2 * n), jacobian(with_jacobian ? 12 * n : 0);
-  cost.evaluate_points(x.data(), uv.data(), residuals.data(), with_jacobian ? jacobian.data() : nullptr);
-  ViewFit fit;
-  fit.distances_px.resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d px(uv[2 * i], uv[2 * i + 1]);
-    if (!px.allFinite()) {
-      fit.distances_px[i] = std::numeric_limits<double>::infinity();
-      continue;
-    }
-    if (camera.in_image(px)) ++fit.in_image;
-    fit.distances_px[i] = std::hypot(residuals[2 * i], residuals[2 * i + 1]);
-  }
-  if (with_jacobian) {
-    const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>> J(
-        jacobian.data(), static_cast<Eigen::Index>(2 * n), 6);
-    fit.JtJ.noalias() = J.transpose() * J;
-  }
+/// Fit of a view's points at x (Huber-free distances, points in the image) and, when ne is
+/// not null, the normal equations there (their JtJ_plain() is the covariance's).
+detail::PointFit fit_of_view(const std::vector<Eigen::Vector3d>& points, const SmoothView& view,
+                             const ProjectionModel& cam, double huber_px, const core::Vector6d& x,
+                             detail::NormalEquations* ne) {
+  detail::PointFit fit;
+  ViewEdgeCost(&cam, &view, &points, huber_px).accumulate(x.data(), ne, &fit);
   return fit;
 }
 
@@ -369,10 +345,14 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   std::vector<double> sum2_of_view(usable_index.size(), 0.0);
   std::vector<core::Matrix6d> JtJ_of_view(usable_index.size(), core::Matrix6d::Zero());
   std::vector<size_t> count_of_view(usable_index.size(), 0);
+  // Fit (and normal equations) of each view at this round's x, when the polish left them.
+  std::vector<detail::PointFit> fit_at_x(usable_index.size());
+  std::vector<detail::NormalEquations> normal_equations_of_view(usable_index.size());
   ceres::Solver::Summary summary;
   std::string polish_report;
   std::ostringstream message;
   for (int round = 0;; ++round) {
+    std::vector<bool> have_fit(usable_index.size(), false);
     // Eq. (2) on the coarse subset brings the pose near the minimum at a fraction of the
     // cost per iteration; the full set then only has to polish it (a few iterations).
     const bool coarse_first = !paper && options.coarse_stride > 1;
@@ -387,8 +367,9 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
       }
       ceres::Solve(solver_options, &problem, &summary);
       result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
-      // ... then ceres::TinySolver polishes on all points from inside the basin, with the
-      // same relative-step and gradient tolerances (and no per-evaluation bookkeeping).
+      // ... then our LM polishes on all points from inside the basin, with the same
+      // relative-step and gradient tolerances, on 6x6 normal equations accumulated point by
+      // point; its last evaluation also gives the per-view fit and the covariance's J^T J.
       std::vector<std::unique_ptr<ViewEdgeCost>> costs;
       std::vector<const ViewEdgeCost*> cost_pointers;
       for (size_t k = 0; k < usable_index.size(); ++k) {
@@ -397,23 +378,26 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
             &cam, fields[k].get(), &views[usable_index[k]].lidar_circle_points, options.huber_px));
         cost_pointers.push_back(costs.back().get());
       }
-      const detail::StackedEdgeCosts stacked(cost_pointers);
-      ceres::TinySolver<detail::StackedEdgeCosts> polish;
-      polish.options.max_num_iterations = options.max_iterations;
-      polish.options.parameter_tolerance = options.parameter_tolerance;
-      polish.options.gradient_tolerance = solver_options.gradient_tolerance;
-      // TinySolver's function tolerance is absolute; the relative one above is Ceres'.
-      polish.options.function_tolerance = 0.0;
-      Eigen::Matrix<double, 6, 1> x_polish = x;
-      const auto& s = polish.Solve(stacked, &x_polish);
-      x = x_polish;
-      result.iterations += s.iterations;
-      const bool polished = s.status != decltype(polish)::HIT_MAX_ITERATIONS;
-      result.converged = summary.termination_type == ceres::CONVERGENCE && polished;
+      detail::PolishOptions polish_options;
+      polish_options.max_iterations = options.max_iterations;
+      polish_options.parameter_tolerance = options.parameter_tolerance;
+      polish_options.gradient_tolerance = solver_options.gradient_tolerance;
+      detail::PolishResult polished = detail::polish(cost_pointers, x, polish_options);
+      x = polished.x;
+      result.iterations += polished.iterations;
+      result.converged = summary.termination_type == ceres::CONVERGENCE && polished.converged;
+      size_t j = 0;
+      for (size_t k = 0; k < usable_index.size(); ++k) {
+        if (!active[k]) continue;
+        fit_at_x[k] = std::move(polished.fits[j]);
+        normal_equations_of_view[k] = polished.normal_equations[j];
+        have_fit[k] = true;
+        ++j;
+      }
       std::ostringstream report;
-      report << "coarse: " << summary.BriefReport() << "; all points: " << s.iterations
-             << " iterations, cost " << s.initial_cost << " -> " << s.final_cost
-             << (polished ? ", converged" : ", hit max_iterations");
+      report << "coarse: " << summary.BriefReport() << "; all points: " << polished.iterations
+             << " iterations, cost " << polished.initial_cost << " -> " << polished.final_cost
+             << (polished.converged ? ", converged" : ", hit max_iterations");
       polish_report = report.str();
     } else {
       ceres::Problem problem;
@@ -443,11 +427,15 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     std::vector<double> active_rms;
     for (size_t k = 0; k < usable_index.size(); ++k) {
       const TargetView& v = views[usable_index[k]];
-      // The covariance needs J^T J at the final pose; getting it with each round's fit
-      // saves a pass (there is usually one round).
-      const ViewFit fit = fit_of_view(v.lidar_circle_points, *fields[k], cam, camera, x,
-                                      options.compute_covariance);
-      JtJ_of_view[k] = fit.JtJ;
+      // The covariance needs J^T J at the final pose: the polish's last evaluation has it
+      // for the active views; the others (and the paper's method) take one pass here.
+      if (!have_fit[k]) {
+        normal_equations_of_view[k] = {};
+        fit_at_x[k] = fit_of_view(v.lidar_circle_points, *fields[k], cam, options.huber_px, x,
+                                  options.compute_covariance ? &normal_equations_of_view[k] : nullptr);
+      }
+      const detail::PointFit& fit = fit_at_x[k];
+      JtJ_of_view[k] = normal_equations_of_view[k].JtJ_plain();
       double sum2 = 0.0;
       for (double d : fit.distances_px) sum2 += d * d;
       sum2_of_view[k] = sum2;
@@ -554,7 +542,7 @@ std::vector<double> point_to_edge_distances(const TargetView& view,
                                             const Eigen::Isometry3d& T_camera_lidar) {
   const SmoothView field(view.image_edge_points_px, {});
   const ProjectionModel cam = detail::make_projection_model(camera);
-  return fit_of_view(view.lidar_circle_points, field, cam, camera, core::to_vector6(T_camera_lidar), false)
+  return fit_of_view(view.lidar_circle_points, field, cam, 0.0, core::to_vector6(T_camera_lidar), nullptr)
       .distances_px;
 }
 

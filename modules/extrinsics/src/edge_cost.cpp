@@ -55,8 +55,23 @@ bool ViewEdgeCost::Evaluate(double const* const* parameters, double* residuals,
   return true;
 }
 
-void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* residuals,
-                                   double* J, long jacobian_column_stride) const {
+namespace {
+
+/// One point at one pose, as for_each_point hands it on.
+struct PointEval {
+  double uv[2];        // projection [px]
+  bool in_front;       // deeper than kMinDepthM (else the depth was clamped)
+  double f[2];         // Huber-free offset, edge -> projection [px]
+  double r[2];         // residual: f with the Huber loss folded in
+  bool huber_active;   // |f| beyond the Huber width, so r != f
+  Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J;        // dr/dx (when asked)
+  Eigen::Matrix<double, 2, 6, Eigen::RowMajor> J_plain;  // df/dx, only when huber_active
+};
+
+}  // namespace
+
+template <typename Sink>
+void ViewEdgeCost::for_each_point(const double* x, bool with_jacobian, Sink&& sink) const {
   const size_t n = points_->size();
   // R and dR/dx[k] once per evaluation (Jets over the three rotation parameters only).
   using Jet3 = ceres::Jet<double, 3>;
@@ -70,30 +85,31 @@ void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* resi
   }
   const Eigen::Vector3d t(x[3], x[4], x[5]);
 
+  PointEval e;
   for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d& p = (*points_)[i];
     const Eigen::Vector3d pc = R * p + t;
-    double* r = residuals + 2 * i;
-    double uv[2];
-    Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_uv_pc;
-    if (J == nullptr) project_total(*cam_, pc.data(), uv);
-    else project_total_with_jacobian(*cam_, pc.data(), uv, J_uv_pc.data());
-    if (uv_out != nullptr) {
-      const bool in_front = pc.z() > kMinDepthM;
-      uv_out[2 * i] = in_front ? uv[0] : std::numeric_limits<double>::quiet_NaN();
-      uv_out[2 * i + 1] = in_front ? uv[1] : std::numeric_limits<double>::quiet_NaN();
-    }
-    if (J == nullptr) {
-      view_->evaluate(uv[0], uv[1], r, nullptr);
-      apply_huber(huber_px_, r);
+    e.in_front = pc.z() > kMinDepthM;
+    e.huber_active = false;
+    if (!with_jacobian) {
+      project_total(*cam_, pc.data(), e.uv);
+      view_->evaluate(e.uv[0], e.uv[1], e.f, nullptr);
+      e.r[0] = e.f[0];
+      e.r[1] = e.f[1];
+      apply_huber(huber_px_, e.r);
+      e.huber_active = e.r[0] != e.f[0] || e.r[1] != e.f[1];
+      sink(i, e);
       continue;
     }
-    double J_f_uv[4];
-    view_->evaluate(uv[0], uv[1], r, J_f_uv);
-    Eigen::Matrix2d J_r_uv;
-    J_r_uv << J_f_uv[0], J_f_uv[1], J_f_uv[2], J_f_uv[3];
+    Eigen::Matrix<double, 2, 3, Eigen::RowMajor> J_uv_pc;
+    project_total_with_jacobian(*cam_, pc.data(), e.uv, J_uv_pc.data());
+    Eigen::Matrix<double, 2, 2, Eigen::RowMajor> J_f_uv;
+    view_->evaluate(e.uv[0], e.uv[1], e.f, J_f_uv.data());
+    e.r[0] = e.f[0];
+    e.r[1] = e.f[1];
+    Eigen::Matrix2d J_r_uv = J_f_uv;
     if (huber_px_ > 0.0) {
-      const Eigen::Vector2d f(r[0], r[1]);
+      const Eigen::Vector2d f(e.f[0], e.f[1]);
       const double a2 = f.squaredNorm(), delta = huber_px_;
       if (a2 > delta * delta) {
         // r' = s(a) f with a = |f|, s = sqrt(2 delta / a - delta^2 / a^2):
@@ -104,32 +120,67 @@ void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* resi
         const Eigen::Matrix2d J_huber =
             s * Eigen::Matrix2d::Identity() + (ds_da / a) * f * f.transpose();
         J_r_uv = J_huber * J_r_uv;
-        r[0] = s * f.x();
-        r[1] = s * f.y();
+        e.r[0] = s * f.x();
+        e.r[1] = s * f.y();
+        e.huber_active = true;
       }
     }
-    const Eigen::Matrix<double, 2, 3> J_r_pc = J_r_uv * J_uv_pc;  // also d(r)/d(translation)
-    if (jacobian_column_stride == 0) {
-      double* row0 = J + 12 * i;
-      double* row1 = row0 + 6;
-      for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector2d d = J_r_pc * (dR[k] * p);
-        row0[k] = d.x();
-        row1[k] = d.y();
-        row0[3 + k] = J_r_pc(0, k);
-        row1[3 + k] = J_r_pc(1, k);
-      }
-    } else {
-      double* col = J + 2 * i;
-      for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector2d d = J_r_pc * (dR[k] * p);
-        col[k * jacobian_column_stride] = d.x();
-        col[k * jacobian_column_stride + 1] = d.y();
-        col[(3 + k) * jacobian_column_stride] = J_r_pc(0, k);
-        col[(3 + k) * jacobian_column_stride + 1] = J_r_pc(1, k);
-      }
+    // d(p_camera)/d(rotation) = [dR[0] p, dR[1] p, dR[2] p]; d(p_camera)/d(translation) = I.
+    Eigen::Matrix3d dpc_drot;
+    for (int k = 0; k < 3; ++k) dpc_drot.col(k) = dR[k] * p;
+    const Eigen::Matrix<double, 2, 3> J_r_pc = J_r_uv * J_uv_pc;
+    e.J.leftCols<3>() = J_r_pc * dpc_drot;
+    e.J.rightCols<3>() = J_r_pc;
+    if (e.huber_active) {
+      const Eigen::Matrix<double, 2, 3> J_f_pc = J_f_uv * J_uv_pc;
+      e.J_plain.leftCols<3>() = J_f_pc * dpc_drot;
+      e.J_plain.rightCols<3>() = J_f_pc;
     }
+    sink(i, e);
   }
+}
+
+void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* residuals,
+                                   double* J) const {
+  for_each_point(x, J != nullptr, [&](size_t i, const PointEval& e) {
+    if (uv_out != nullptr) {
+      uv_out[2 * i] = e.in_front ? e.uv[0] : std::numeric_limits<double>::quiet_NaN();
+      uv_out[2 * i + 1] = e.in_front ? e.uv[1] : std::numeric_limits<double>::quiet_NaN();
+    }
+    residuals[2 * i] = e.r[0];
+    residuals[2 * i + 1] = e.r[1];
+    if (J != nullptr) Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>>(J + 12 * i) = e.J;
+  });
+}
+
+void ViewEdgeCost::accumulate(const double* x, NormalEquations* ne, PointFit* fit) const {
+  fit->distances_px.resize(points_->size());
+  fit->in_image = 0;
+  // Sums in locals (registers), added to *ne once.
+  core::Matrix6d JtJ = core::Matrix6d::Zero(), huber_excess = core::Matrix6d::Zero();
+  core::Vector6d Jtr = core::Vector6d::Zero();
+  double r2 = 0.0;
+  // The image covers [-0.5, size - 0.5) (core::PinholeCamera::in_image).
+  const double u_end = cam_->width - 0.5, v_end = cam_->height - 0.5;
+  for_each_point(x, ne != nullptr, [&](size_t i, const PointEval& e) {
+    const bool finite = e.in_front && std::isfinite(e.uv[0]) && std::isfinite(e.uv[1]);
+    fit->distances_px[i] = finite ? std::sqrt(e.f[0] * e.f[0] + e.f[1] * e.f[1])
+                                  : std::numeric_limits<double>::infinity();
+    fit->in_image += finite && e.uv[0] >= -0.5 && e.uv[1] >= -0.5 && e.uv[0] < u_end && e.uv[1] < v_end;
+    if (ne == nullptr) return;
+    JtJ.noalias() += e.J.transpose() * e.J;
+    Jtr.noalias() += e.J.transpose() * Eigen::Vector2d(e.r[0], e.r[1]);
+    r2 += e.r[0] * e.r[0] + e.r[1] * e.r[1];
+    if (e.huber_active) {
+      huber_excess.noalias() += e.J_plain.transpose() * e.J_plain;
+      huber_excess.noalias() -= e.J.transpose() * e.J;
+    }
+  });
+  if (ne == nullptr) return;
+  ne->JtJ += JtJ;
+  ne->Jtr += Jtr;
+  ne->r2 += r2;
+  ne->huber_excess += huber_excess;
 }
 
 }  // namespace rgbdt::extrinsics::detail

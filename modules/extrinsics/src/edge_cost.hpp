@@ -10,6 +10,8 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "rgbdt/core/transform.hpp"
+
 #include "projection.hpp"
 #include "rgbdt/extrinsics/edge_distance_field.hpp"
 
@@ -91,6 +93,33 @@ void apply_huber(double huber_px, T* r) {
   r[1] *= scale;
 }
 
+/// Normal equations of Eq. (2) at one pose, accumulated point by point (no N x 6 Jacobian
+/// is stored): what a Gauss-Newton / Levenberg-Marquardt step needs, plus the J^T J of the
+/// Huber-free residuals for the covariance, from the same pass.
+struct NormalEquations {
+  core::Matrix6d JtJ = core::Matrix6d::Zero();  ///< J^T J of the (Huber-folded) residuals
+  core::Vector6d Jtr = core::Vector6d::Zero();  ///< J^T r
+  double r2 = 0.0;                              ///< |r|^2 (twice the cost)
+  /// sum over the points beyond the Huber width of (J_f^T J_f - J_r^T J_r), J_f the
+  /// Jacobian without Huber: JtJ + huber_excess is J^T J of the plain residuals.
+  core::Matrix6d huber_excess = core::Matrix6d::Zero();
+  core::Matrix6d JtJ_plain() const { return JtJ + huber_excess; }
+  NormalEquations& operator+=(const NormalEquations& o) {
+    JtJ += o.JtJ;
+    Jtr += o.Jtr;
+    r2 += o.r2;
+    huber_excess += o.huber_excess;
+    return *this;
+  }
+};
+
+/// Fit of one view's points at a pose: the Huber-free point-to-edge distances (+infinity
+/// for points not in front of the camera) and how many project into the image.
+struct PointFit {
+  std::vector<double> distances_px;
+  int in_image = 0;
+};
+
 /// All points of one view in one cost function (Ceres' per-block overhead dominates with
 /// one block per point), parameter block [rx ry rz tx ty tz] (angle-axis, metres).
 /// Analytic Jacobian: d(residual)/d(x) = d(huber)/d(r) * d(field)/d(uv) * d(uv)/d(p_camera)
@@ -103,44 +132,24 @@ class ViewEdgeCost : public ceres::CostFunction {
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override;
   /// Evaluate() at pose x, plus each point's pixel (2n, NaN for points not in front of the
-  /// camera) when uv is not null. jacobian may be null; it is row-major (2n x 6) when
-  /// jacobian_column_stride is 0, else column-major with that leading dimension (for a
-  /// stacked Eigen matrix of several views, jacobian pointing at this view's first row).
-  void evaluate_points(const double* x, double* uv, double* residuals, double* jacobian,
-                       long jacobian_column_stride = 0) const;
+  /// camera) when uv is not null. jacobian (row-major 2n x 6) may be null.
+  void evaluate_points(const double* x, double* uv, double* residuals, double* jacobian) const;
+  /// The normal equations of this view's residuals at x added to *ne (skipped when ne is
+  /// null), and the fit of its points (Huber-free distances, points in the image) in *fit,
+  /// in one pass: one Levenberg-Marquardt evaluation that also yields the per-view fit and
+  /// the covariance's J^T J at the pose where the solve stops.
+  void accumulate(const double* x, NormalEquations* ne, PointFit* fit) const;
   int num_points() const { return static_cast<int>(points_->size()); }
 
  private:
+  /// Calls sink(i, eval) for every point at pose x, with its Jacobian when with_jacobian.
+  template <typename Sink>
+  void for_each_point(const double* x, bool with_jacobian, Sink&& sink) const;
+
   const ProjectionModel* cam_;
   const SmoothView* view_;
   const std::vector<Eigen::Vector3d>* points_;
   double huber_px_;
-};
-
-/// Eq. (2) over several views for ceres::TinySolver (dense LM without ceres::Problem's
-/// per-evaluation bookkeeping, which dominates a 6-parameter problem with thousands of
-/// residuals): the residuals of the views stacked, Jacobian column-major.
-class StackedEdgeCosts {
- public:
-  using Scalar = double;
-  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 6 };
-  explicit StackedEdgeCosts(std::vector<const ViewEdgeCost*> costs) : costs_(std::move(costs)) {
-    for (const ViewEdgeCost* c : costs_) num_residuals_ += 2 * c->num_points();
-  }
-  int NumResiduals() const { return num_residuals_; }
-  bool operator()(const double* x, double* residuals, double* jacobian) const {
-    long row = 0;
-    for (const ViewEdgeCost* c : costs_) {
-      c->evaluate_points(x, nullptr, residuals + row, jacobian != nullptr ? jacobian + row : nullptr,
-                         num_residuals_);
-      row += 2 * c->num_points();
-    }
-    return true;
-  }
-
- private:
-  std::vector<const ViewEdgeCost*> costs_;
-  int num_residuals_ = 0;
 };
 
 }  // namespace rgbdt::extrinsics::detail

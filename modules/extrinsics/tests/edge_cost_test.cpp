@@ -109,6 +109,68 @@ TEST(ViewEdgeCost, AnalyticJacobianEqualsAutodiffInEveryBranch) {
   }
 }
 
+TEST(ViewEdgeCost, AccumulatedNormalEquationsEqualTheStackedJacobians) {
+  // accumulate() sums J^T J, J^T r and |r|^2 point by point (the LM polish never stores J);
+  // they must equal the products of the Jacobians evaluate_points() returns, with Huber
+  // (what LM solves) and without (the covariance's JtJ_plain), and the fit must be the
+  // Huber-free distances and the in-image count of core::PinholeCamera.
+  const Scene s;
+  const detail::SmoothView view(s.views[2].image_edge_points_px, {});
+  const auto& points = s.views[2].lidar_circle_points;
+  const size_t n = points.size();
+  int total_huber_active = 0;
+  // At the truth (all in the band), a few degrees off (Huber active for many points) and
+  // far off (nearest-edge form, points behind the camera).
+  for (const auto& T : {s.truth, testing::offset_guess(s.truth, 3, 0, 2, 0.05, 0, 0),
+                        testing::offset_guess(s.truth, 0, 0, 0, 7.0, 0, 0)}) {
+    const core::Vector6d x = core::to_vector6(T);
+    detail::NormalEquations ne;
+    detail::PointFit fit;
+    detail::ViewEdgeCost(&s.cam, &view, &points, 2.0).accumulate(x.data(), &ne, &fit);
+    using RowMajorJ = Eigen::Matrix<double, Eigen::Dynamic, 6, Eigen::RowMajor>;
+    RowMajorJ J(2 * n, 6), J_plain(2 * n, 6);
+    Eigen::VectorXd r(2 * n), f(2 * n), uv(2 * n);
+    detail::ViewEdgeCost(&s.cam, &view, &points, 2.0).evaluate_points(x.data(), nullptr, r.data(), J.data());
+    detail::ViewEdgeCost(&s.cam, &view, &points, 0.0).evaluate_points(x.data(), uv.data(), f.data(),
+                                                                       J_plain.data());
+    const core::Matrix6d JtJ = J.transpose() * J, JtJ_plain = J_plain.transpose() * J_plain;
+    const core::Vector6d Jtr = J.transpose() * r;
+    // Same sums in another order (per point vs. blocked gemm): rounding, ~1e-15 relative
+    // to the largest term; 1e-9 of the scale leaves room for cancellation in off-diagonals.
+    const double scale = JtJ.cwiseAbs().maxCoeff();
+    EXPECT_LT((ne.JtJ - JtJ).cwiseAbs().maxCoeff(), 1e-9 * scale);
+    EXPECT_LT((ne.JtJ_plain() - JtJ_plain).cwiseAbs().maxCoeff(), 1e-9 * JtJ_plain.cwiseAbs().maxCoeff());
+    EXPECT_LT((ne.Jtr - Jtr).cwiseAbs().maxCoeff(), 1e-9 * (1.0 + Jtr.cwiseAbs().maxCoeff()));
+    EXPECT_NEAR(ne.r2, r.squaredNorm(), 1e-12 * (1.0 + r.squaredNorm()));
+    int in_image = 0, huber_active = 0;
+    ASSERT_EQ(fit.distances_px.size(), n);
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector2d px(uv[2 * i], uv[2 * i + 1]);
+      if (!px.allFinite()) {
+        EXPECT_TRUE(std::isinf(fit.distances_px[i])) << "point " << i;
+        continue;
+      }
+      in_image += s.camera.in_image(px);
+      const double d = std::hypot(f[2 * i], f[2 * i + 1]);
+      huber_active += d > 2.0;
+      EXPECT_NEAR(fit.distances_px[i], d, 1e-12 * (1.0 + d)) << "point " << i;
+    }
+    EXPECT_EQ(fit.in_image, in_image);
+    total_huber_active += huber_active;
+    // Without normal equations, only the fit (projection without its Jacobian: rounding).
+    detail::PointFit fit_only;
+    detail::ViewEdgeCost(&s.cam, &view, &points, 2.0).accumulate(x.data(), nullptr, &fit_only);
+    ASSERT_EQ(fit_only.distances_px.size(), n);
+    for (size_t i = 0; i < n; ++i) {
+      const double d = fit.distances_px[i];
+      if (std::isinf(d)) EXPECT_EQ(fit_only.distances_px[i], d);
+      else EXPECT_NEAR(fit_only.distances_px[i], d, 1e-9 * (1.0 + d)) << "point " << i;
+    }
+    EXPECT_EQ(fit_only.in_image, fit.in_image);
+  }
+  EXPECT_GT(total_huber_active, 100);  // the Huber correction was exercised
+}
+
 TEST(EdgeDistanceField, InterpolateEqualsCeresBiCubicInterpolator) {
   // The field's one-pass bicubic must be ceres::BiCubicInterpolator's interpolant over the
   // same grid, value and gradient, at every in-band pixel (tile borders included).

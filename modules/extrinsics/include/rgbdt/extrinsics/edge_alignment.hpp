@@ -66,7 +66,8 @@ struct EdgeAlignmentOptions {
   /// the image at the initial guess and again at the solution.
   double min_in_image_fraction = 0.5;
   /// Fill EdgeAlignmentResult::covariance ((J^T J)^-1 of the residuals at the solution,
-  /// scaled by the residual variance). Off saves ~0.1 ms per solve.
+  /// scaled by the residual variance). Nearly free for kSmoothField (the polish's last
+  /// evaluation yields J^T J); for kPaperPlaneFit it costs one pass with the Jacobian.
   bool compute_covariance = true;
 
   std::string validate() const;  ///< empty when valid, else the reason

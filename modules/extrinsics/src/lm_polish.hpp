@@ -1,0 +1,36 @@
+#pragma once
+// The polish of our Eq. (2) solve on all circle points, from inside the basin (after the
+// coarse solve): Levenberg-Marquardt on 6x6 normal equations accumulated point by point.
+// Private to the module.
+#include <vector>
+
+#include "edge_cost.hpp"
+
+namespace rgbdt::extrinsics::detail {
+
+struct PolishOptions {
+  int max_iterations = 100;            ///< LM steps tried, accepted or not
+  double parameter_tolerance = 1e-10;  ///< stop when |dx| < tol (|x| + tol)
+  double gradient_tolerance = 1e-14;   ///< stop when max |J^T r| (scaled) < tol
+};
+
+struct PolishResult {
+  core::Vector6d x = core::Vector6d::Zero();  ///< the pose where the solve stopped
+  int iterations = 0;          ///< LM steps tried, including the final too-small one
+  bool converged = false;      ///< a tolerance was reached (not max_iterations)
+  double initial_cost = 0.0;   ///< 1/2 |r|^2 at the start
+  double final_cost = 0.0;     ///< 1/2 |r|^2 at x
+  /// Per cost (same order as the input), at x: the normal equations (their JtJ_plain() is
+  /// the covariance's) and the fit of the points. Every evaluation computes both, so the
+  /// last accepted one serves the per-view fit and the covariance without another pass.
+  std::vector<NormalEquations> normal_equations;
+  std::vector<PointFit> fits;
+};
+
+/// Minimises the stacked residuals of the costs from x0. Each evaluation is one pass over
+/// the points with the Jacobian (near the minimum almost every step is accepted, so the
+/// residual-only pass of a classic LM step would be a pass more per step).
+PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::Vector6d& x0,
+                    const PolishOptions& options);
+
+}  // namespace rgbdt::extrinsics::detail
