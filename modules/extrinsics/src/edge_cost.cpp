@@ -168,15 +168,28 @@ void ViewEdgeCost::accumulate(const double* x, NormalEquations* ne, PointFit* fi
                                   : std::numeric_limits<double>::infinity();
     fit->in_image += finite && e.uv[0] >= -0.5 && e.uv[1] >= -0.5 && e.uv[0] < u_end && e.uv[1] < v_end;
     if (ne == nullptr) return;
-    JtJ.noalias() += e.J.transpose() * e.J;
-    Jtr.noalias() += e.J.transpose() * Eigen::Vector2d(e.r[0], e.r[1]);
+    // Upper triangles only (mirrored below): 21 of the 36 entries.
+    for (int a = 0; a < 6; ++a) {
+      for (int b = a; b < 6; ++b) JtJ(a, b) += e.J(0, a) * e.J(0, b) + e.J(1, a) * e.J(1, b);
+      Jtr(a) += e.J(0, a) * e.r[0] + e.J(1, a) * e.r[1];
+    }
     r2 += e.r[0] * e.r[0] + e.r[1] * e.r[1];
     if (e.huber_active) {
-      huber_excess.noalias() += e.J_plain.transpose() * e.J_plain;
-      huber_excess.noalias() -= e.J.transpose() * e.J;
+      for (int a = 0; a < 6; ++a) {
+        for (int b = a; b < 6; ++b) {
+          huber_excess(a, b) += e.J_plain(0, a) * e.J_plain(0, b) + e.J_plain(1, a) * e.J_plain(1, b) -
+                                e.J(0, a) * e.J(0, b) - e.J(1, a) * e.J(1, b);
+        }
+      }
     }
   });
   if (ne == nullptr) return;
+  for (int a = 0; a < 6; ++a) {
+    for (int b = 0; b < a; ++b) {
+      JtJ(a, b) = JtJ(b, a);
+      huber_excess(a, b) = huber_excess(b, a);
+    }
+  }
   ne->JtJ += JtJ;
   ne->Jtr += Jtr;
   ne->r2 += r2;
