@@ -218,6 +218,8 @@ std::string EdgeAlignmentOptions::validate() const {
   if (max_iterations < 1) os << "max_iterations = " << max_iterations << ", expected >= 1; ";
   if (!(function_tolerance > 0.0)) os << "function_tolerance must be > 0; ";
   if (!(parameter_tolerance > 0.0)) os << "parameter_tolerance must be > 0; ";
+  if (!(step_tolerance_sigma >= 0.0))
+    os << "step_tolerance_sigma = " << step_tolerance_sigma << ", expected >= 0; ";
   if (paper_window_px < 2) os << "paper_window_px = " << paper_window_px << ", expected >= 2; ";
   if (!(outlier_rms_ratio > 1.0)) os << "outlier_rms_ratio = " << outlier_rms_ratio << ", expected > 1; ";
   if (!(outlier_min_rms_px > 0.0)) os << "outlier_min_rms_px = " << outlier_min_rms_px << ", expected > 0; ";
@@ -382,6 +384,7 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
       polish_options.max_iterations = options.max_iterations;
       polish_options.parameter_tolerance = options.parameter_tolerance;
       polish_options.gradient_tolerance = solver_options.gradient_tolerance;
+      polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
       detail::PolishResult polished = detail::polish(cost_pointers, x, polish_options);
       x = polished.x;
       result.iterations += polished.iterations;

@@ -47,6 +47,8 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
   core::Vector6d g;
   scaled_system(current.total, &A, &g);
 
+  long num_points = 0;
+  for (const ViewEdgeCost* c : costs) num_points += c->num_points();
   bool stopped = g.cwiseAbs().maxCoeff() < options.gradient_tolerance;
   // Levenberg-Marquardt damping u with Nielsen's update (factor v on rejection).
   double u = 1e-4, v = 2.0;
@@ -59,6 +61,18 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
     if (dx.norm() < options.parameter_tolerance * (x.norm() + options.parameter_tolerance)) {
       stopped = true;
       break;
+    }
+    // The step's length in standard deviations of the estimate: |dx|^2 over the covariance
+    // sigma^2 (J^T J)^-1 is step^T A step / sigma^2, sigma^2 = |r|^2 / (points - 6). A step
+    // far below one sigma changes nothing a user can measure; evaluating it would cost a
+    // pass over all points.
+    if (options.step_tolerance_sigma > 0.0 && num_points > 6) {
+      const double sigma2 = current.total.r2 / static_cast<double>(num_points - 6);
+      const double tol = options.step_tolerance_sigma;
+      if (step.dot(A * step) < tol * tol * sigma2) {
+        stopped = true;
+        break;
+      }
     }
     const core::Vector6d x_new = x + dx;
     evaluate(costs, x_new, &candidate);

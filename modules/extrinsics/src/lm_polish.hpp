@@ -12,6 +12,9 @@ struct PolishOptions {
   int max_iterations = 100;            ///< LM steps tried, accepted or not
   double parameter_tolerance = 1e-10;  ///< stop when |dx| < tol (|x| + tol)
   double gradient_tolerance = 1e-14;   ///< stop when max |J^T r| (scaled) < tol
+  /// Stop, before evaluating it, when the next step is shorter than this many standard
+  /// deviations of the estimate (Mahalanobis length under sigma^2 (J^T J)^-1); 0 = off.
+  double step_tolerance_sigma = 0.0;
 };
 
 struct PolishResult {

@@ -113,6 +113,36 @@ TEST(EdgeAlignment, NoisyEdgesGiveAnHonestCovariance) {
   EXPECT_LT(std::sqrt(mahalanobis2), 6.0);
 }
 
+TEST(EdgeAlignment, StepToleranceStopsOnlyWhereTheRestIsFarBelowOneSigma) {
+  // The polish stops once its next step is < step_tolerance_sigma standard deviations; run to
+  // the relative-step tolerance instead, the pose may move by at most about that much.
+  for (const double noise_px : {0.0, 0.3}) {
+    Scene s;
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0.0, noise_px > 0.0 ? noise_px : 1.0);
+    if (noise_px > 0.0)
+      for (auto& v : s.views)
+        for (auto& p : v.image_edge_points_px) p += Eigen::Vector2d(noise(rng), noise(rng));
+    EdgeAlignmentOptions full;
+    full.step_tolerance_sigma = 0.0;
+    const EdgeAlignmentResult early = align_edges(s.views, s.camera);
+    const EdgeAlignmentResult late = align_edges(s.views, s.camera, full);
+    ASSERT_TRUE(early.converged && late.converged) << early.message << " / " << late.message;
+    ASSERT_TRUE(early.covariance_valid);
+    EXPECT_LT(early.iterations, late.iterations);  // the tolerance did stop the polish early
+    const core::Vector6d dx = core::to_vector6(late.T_camera_lidar) - core::to_vector6(early.T_camera_lidar);
+    const double sigmas = std::sqrt(dx.dot(early.covariance.inverse() * dx));
+    // The skipped steps shrink at least linearly, so the rest is a small multiple of the
+    // last step (< 0.01 sigma); 0.05 sigma leaves room for that and is still nothing
+    // measurable.
+    EXPECT_LT(sigmas, 0.05) << "noise " << noise_px << " px";
+    EXPECT_NEAR(early.rms_px, late.rms_px, 1e-6 * (1.0 + late.rms_px));
+  }
+  EdgeAlignmentOptions bad;
+  bad.step_tolerance_sigma = -1.0;
+  EXPECT_NE(bad.validate().find("step_tolerance_sigma"), std::string::npos);
+}
+
 TEST(EdgeAlignment, RejectsAViewWhoseImageEdgesDoNotMatchAndSaysWhy) {
   Scene s;
   // A ninth view whose image edges belong to another placement (a mismatched image).

@@ -43,6 +43,11 @@ struct EdgeAlignmentOptions {
   int max_iterations = 100;           ///< Levenberg-Marquardt iterations per solve
   double function_tolerance = 1e-10;  ///< relative cost change that ends the solve
   double parameter_tolerance = 1e-10; ///< relative step size that ends the solve
+  /// The polish on all points (kSmoothField, coarse_stride > 1) also ends when its next
+  /// step would move the pose by less than this many standard deviations of the estimate
+  /// (its Mahalanobis length under the covariance): such a step changes nothing
+  /// measurable and evaluating it costs a pass over all points. 0 = off.
+  double step_tolerance_sigma = 0.01;
   EdgeFieldOptions field;             ///< distance field (kSmoothField)
   /// Before Eq. (2), refine the start by projecting the LIDAR hole centres onto the image
   /// ellipse centres (needs >= 3 holes with both). Widens the basin of convergence from a
