@@ -238,6 +238,7 @@ int main(int argc, char** argv) {
   std::string session_path, calib_dir, out_dir, backend = "gicp", lidar_source = "auto";
   double resolution_m = 0.05;
   int max_clouds = 0;
+  std::string motion_prior;
   app.add_option("session", session_path, "mapping session folder (or its session.yaml)")->required();
   app.add_option("--calib", calib_dir, "calibration folder with extrinsics_<camera>.yaml (e.g. SESSION/true_calib)")
       ->required();
@@ -245,6 +246,11 @@ int main(int argc, char** argv) {
   app.add_option("--resolution", resolution_m, "map voxel and octree resolution [m]")->check(CLI::PositiveNumber);
   app.add_option("--icp", backend, "registration back-end: gicp or icp")->check(CLI::IsMember({"gicp", "icp"}));
   app.add_option("--max-clouds", max_clouds, "map only the first N clouds (0: all)");
+  app.add_option("--motion-prior", motion_prior,
+                 "CSV time_s,x,y,z,qx,qy,qz,qw of the LIDAR's motion from another sensor (IMU or wheel "
+                 "odometry moved to the LIDAR frame; any fixed frame, any drift): de-skews each tilt and seeds "
+                 "its registration instead of the constant-velocity guess. Must cover the session's time.")
+      ->check(CLI::ExistingFile);
   app.add_option("--lidar", lidar_source,
                  "LIDAR input: rawlog (lidar.rawlog + tilt_rig.yaml through the assembler), clouds (the "
                  "PCD index), or auto (rawlog when the session has both, else clouds)")
@@ -315,6 +321,19 @@ int main(int argc, char** argv) {
     RegistrationOptions reg_options;
     reg_options.backend = icp_backend_from_string(backend);
     Odometry odometry(reg_options);
+    if (!motion_prior.empty()) {
+      Trajectory prior = read_trajectory_csv(motion_prior);
+      if (prior.size() < 2 || prior.poses().front().time_s > clouds.front().time_s ||
+          prior.poses().back().time_s < clouds.back().time_s) {
+        throw core::Error(motion_prior, "covers " + (prior.empty() ? std::string("no time") :
+                                        std::to_string(prior.poses().front().time_s) + " - " +
+                                        std::to_string(prior.poses().back().time_s) + " s") +
+                                        ", expected at least the clouds' " + std::to_string(clouds.front().time_s) +
+                                        " - " + std::to_string(clouds.back().time_s) + " s");
+      }
+      std::printf("motion prior: %s (%zu poses)\n", motion_prior.c_str(), prior.size());
+      odometry.set_motion_prior(std::move(prior));
+    }
     t0 = Clock::now();
     std::size_t total_points = 0;
     double icp_ms = 0.0;
@@ -431,11 +450,12 @@ int main(int argc, char** argv) {
     }
     stage_s["render"] = seconds_since(t0);
 
-    std::optional<double> rmse;
-    if (auto truth = ground_truth_trajectory(session.directory)) {
+    std::optional<double> rmse, ate;
+    std::optional<Trajectory> truth = ground_truth_trajectory(session.directory);
+    if (!truth && !session.trajectory.empty()) truth = read_trajectory_csv(session.trajectory);
+    if (truth) {
       rmse = trajectory_rmse_m(trajectory, *truth);
-    } else if (!session.trajectory.empty()) {
-      rmse = trajectory_rmse_m(trajectory, read_trajectory_csv(session.trajectory));
+      if (trajectory.size() >= 3) ate = trajectory_ate_m(trajectory, *truth);
     }
 
     // Summary.
@@ -455,6 +475,8 @@ int main(int argc, char** argv) {
     }
     json << ",\n  \"colored_fraction\": " << json_number(rgb_fraction);
     json << ",\n  \"trajectory_rmse_m\": " << (rmse ? json_number(*rmse) : "null");
+    json << ",\n  \"trajectory_ate_m\": " << (ate ? json_number(*ate) : "null");
+    json << ",\n  \"motion_prior\": " << (motion_prior.empty() ? std::string("null") : "\"" + motion_prior + "\"");
     json << ",\n  \"thermal_error_k\": " << thermal_errors.json();
     json << ",\n  \"lidar_source\": \"" << lidar_source << "\"";
     json << ",\n  \"assembler\": " << assembler_json;

@@ -156,6 +156,25 @@ XyzCloud::Ptr deskew_points(const TimedPoints& in, const Eigen::Isometry3d& moti
   return out;
 }
 
+/// Centroids moved into the LIDAR frame at the tilt's start with a known motion
+/// T_start_(start+tau).
+template <typename Motion>
+XyzCloud::Ptr deskew_points(const TimedPoints& in, const Motion& motion) {
+  auto out = std::make_shared<XyzCloud>();
+  out->resize(in.points.size());
+  long long cached_bin = std::numeric_limits<long long>::min();
+  Eigen::Isometry3f T = Eigen::Isometry3f::Identity();
+  for (std::size_t i = 0; i < in.points.size(); ++i) {
+    const long long bin = std::llround(in.t_s[i] * 1000.0);  // 1 ms, as above
+    if (bin != cached_bin) {
+      T = motion(bin * 1e-3).template cast<float>();
+      cached_bin = bin;
+    }
+    (*out)[i].getVector3fMap() = T * in.points[i];
+  }
+  return out;
+}
+
 }  // namespace
 
 const char* to_string(IcpBackend backend) {
@@ -324,6 +343,11 @@ std::size_t Odometry::memory_bytes() const {
   return bytes;
 }
 
+void Odometry::set_motion_prior(Trajectory prior) {
+  if (prior.empty()) throw std::invalid_argument("Odometry::set_motion_prior: empty trajectory");
+  prior_ = std::move(prior);
+}
+
 Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   const auto& poses = trajectory_.poses();
   if (!poses.empty() && !(cloud_time_s > poses.back().time_s)) {
@@ -349,12 +373,22 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   }
   const TimedPoints centroids =
       sensor_voxels(cloud, options_.source_voxel_m, options_.min_range_m, options_.max_range_m);
-  XyzCloud::Ptr source = deskew_points(centroids, motion_per_s);
+  const bool with_prior = !prior_.empty();
+  XyzCloud::Ptr source;
+  if (with_prior) {
+    const Eigen::Isometry3d T_start_frame = prior_.pose_at(cloud_time_s).inverse();
+    source = deskew_points(centroids, [&](double tau_s) { return T_start_frame * prior_.pose_at(cloud_time_s + tau_s); });
+    if (!poses.empty()) {
+      predicted = poses.back().T_world_lidar * prior_.pose_at(poses.back().time_s).inverse() * prior_.pose_at(cloud_time_s);
+    }
+  } else {
+    source = deskew_points(centroids, motion_per_s);
+  }
   std::shared_ptr<Covariances> source_covariances;
 
   Step step;
   step.T_world_lidar = predicted;
-  if (poses.size() == 1 && m.have_first) {
+  if (!with_prior && poses.size() == 1 && m.have_first) {
     // Second cloud: no velocity yet, and the first cloud in the map is skewed by the very
     // motion being estimated. Iterate to the fixed point where the velocity that de-skews
     // both clouds is the one their registration measures.
@@ -402,8 +436,8 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     // de-skew error is below that at the tilt's end: no second run.
     const Eigen::Isometry3d correction = predicted.inverse() * r.T_target_source;
     constexpr double lever_m = 10.0;  // a rotation error seen at 10 m
-    if (correction.translation().norm() + lever_m * Eigen::AngleAxisd(correction.linear()).angle() >
-        options_.refine_above_m) {
+    if (!with_prior && correction.translation().norm() + lever_m * Eigen::AngleAxisd(correction.linear()).angle() >
+                           options_.refine_above_m) {
       const Eigen::Isometry3d measured = velocity_between(poses.back(), {cloud_time_s, r.T_target_source});
       source = deskew_points(centroids, measured);
       generalized ? run(m.gicp, r.T_target_source, r) : run(m.icp, r.T_target_source, r);
@@ -419,7 +453,7 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   Impl::MapCloud entry;
   entry.points_world = std::make_shared<XyzCloud>();
   pcl::transformPointCloud(*source, *entry.points_world, step.T_world_lidar.matrix().cast<float>());
-  if (generalized && poses.size() > 1) {
+  if (generalized && (poses.size() > 1 || with_prior)) {
     if (!source_covariances) source_covariances = m.gicp.covariances_of(source);
     const Eigen::Matrix3d R = step.T_world_lidar.linear();
     entry.covariances_world = std::make_shared<Covariances>(source_covariances->size());
@@ -428,13 +462,13 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     }
   }
   m.recent.push_back(entry);
-  if (poses.size() == 1) {
+  if (poses.size() == 1 && !with_prior) {
     m.first_cloud = centroids;
     m.have_first = true;
   }
   while (static_cast<int>(m.recent.size()) > options_.local_map_clouds) m.recent.pop_front();
 
-  if (poses.size() >= 2) {
+  if (poses.size() >= 2 || with_prior) {
     // Rebuild the target: concatenation, no new covariances; the search tree is rebuilt
     // once, on the next alignment.
     m.map = std::make_shared<XyzCloud>();

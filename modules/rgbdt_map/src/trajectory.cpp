@@ -1,5 +1,7 @@
 #include "rgbdt/rgbdt_map/trajectory.hpp"
 
+#include <Eigen/Geometry>
+
 #include <cmath>
 #include <fstream>
 #include <iomanip>
@@ -111,6 +113,23 @@ double trajectory_rmse_m(const Trajectory& estimate, const Trajectory& truth) {
     sum += e.squaredNorm();
   }
   return std::sqrt(sum / static_cast<double>(estimate.size()));
+}
+
+double trajectory_ate_m(const Trajectory& estimate, const Trajectory& truth) {
+  if (estimate.size() < 3 || truth.empty()) {
+    throw std::invalid_argument("trajectory_ate_m: needs at least 3 estimated poses and a truth, got " +
+                                std::to_string(estimate.size()) + " and " + std::to_string(truth.size()));
+  }
+  const auto n = static_cast<Eigen::Index>(estimate.size());
+  Eigen::Matrix3Xd est(3, n), ref(3, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const TimedPose& p = estimate.poses()[static_cast<std::size_t>(i)];
+    est.col(i) = p.T_world_lidar.translation();
+    ref.col(i) = truth.pose_at(p.time_s).translation();
+  }
+  const Eigen::Matrix4d T = Eigen::umeyama(est, ref, false);
+  const Eigen::Matrix3Xd error = ((T.topLeftCorner<3, 3>() * est).colwise() + T.topRightCorner<3, 1>()) - ref;
+  return std::sqrt(error.colwise().squaredNorm().mean());
 }
 
 }  // namespace rgbdt::rgbdt_map

@@ -50,4 +50,10 @@ void write_trajectory_csv(const std::string& path, const Trajectory& trajectory)
 /// through their first poses (the estimate starts wherever the mapper put its origin). [m]
 double trajectory_rmse_m(const Trajectory& estimate, const Trajectory& truth);
 
+/// The same error after the rigid motion that best aligns the estimate's positions with
+/// the truth's (Umeyama, no scale): the absolute trajectory error of the TUM RGB-D
+/// benchmark. trajectory_rmse_m also counts an early heading error carried along the whole
+/// path; this one does not, which separates it from drift along the way. Needs 3 poses. [m]
+double trajectory_ate_m(const Trajectory& estimate, const Trajectory& truth);
+
 }  // namespace rgbdt::rgbdt_map
