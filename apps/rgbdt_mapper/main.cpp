@@ -223,6 +223,24 @@ std::string json_number(double v) {
   return os.str();
 }
 
+/// A JSON string literal: quotes, backslashes and control characters escaped.
+std::string json_string(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (static_cast<unsigned char>(c) < 0x20) {
+      char buffer[8];
+      std::snprintf(buffer, sizeof buffer, "\\u%04x", c);
+      out += buffer;
+    } else {
+      out += c;
+    }
+  }
+  return out + "\"";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -476,7 +494,7 @@ int main(int argc, char** argv) {
     json << ",\n  \"colored_fraction\": " << json_number(rgb_fraction);
     json << ",\n  \"trajectory_rmse_m\": " << (rmse ? json_number(*rmse) : "null");
     json << ",\n  \"trajectory_ate_m\": " << (ate ? json_number(*ate) : "null");
-    json << ",\n  \"motion_prior\": " << (motion_prior.empty() ? std::string("null") : "\"" + motion_prior + "\"");
+    json << ",\n  \"motion_prior\": " << (motion_prior.empty() ? std::string("null") : json_string(motion_prior));
     json << ",\n  \"thermal_error_k\": " << thermal_errors.json();
     json << ",\n  \"lidar_source\": \"" << lidar_source << "\"";
     json << ",\n  \"assembler\": " << assembler_json;

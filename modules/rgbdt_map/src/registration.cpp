@@ -330,6 +330,10 @@ std::size_t Odometry::memory_bytes() const {
 
 void Odometry::set_motion_prior(Trajectory prior) {
   if (prior.empty()) throw std::invalid_argument("Odometry::set_motion_prior: empty trajectory");
+  if (!trajectory_.empty()) {
+    throw std::logic_error("Odometry::set_motion_prior: " + std::to_string(trajectory_.size()) +
+                           " clouds already added; set the prior before the first");
+  }
   prior_ = std::move(prior);
 }
 

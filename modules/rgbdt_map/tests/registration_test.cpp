@@ -156,6 +156,7 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   EXPECT_LT(rmse_guided, 0.01);
   EXPECT_LT(rmse_guided, rmse_lidar_only);
   EXPECT_THROW(guided.set_motion_prior(Trajectory()), std::invalid_argument);
+  EXPECT_THROW(guided.set_motion_prior(truth), std::logic_error);  // after add()
 }
 
 TEST(Trajectory, InterpolatesExtrapolatesAndRoundTripsThroughCsv) {

@@ -126,8 +126,8 @@ class Odometry {
   /// the constant-velocity guess of a weaving cart is up to 1 deg off. bench/
   /// registration_drift.cpp, 7 LIDAR-only 100 m streets, mean anchored / aligned RMSE:
   /// LIDAR only 0.44 / 0.15 m; a prior with a 0.02 deg + 1 cm random walk per tilt (an IMU)
-  /// 0.18 / 0.042 m; the true motion 0.068 / 0.006 m. Throws std::invalid_argument on an
-  /// empty trajectory.
+  /// 0.18 / 0.042 m; the true motion 0.068 / 0.006 m. Call it before the first add().
+  /// Throws std::invalid_argument on an empty trajectory, std::logic_error after add().
   void set_motion_prior(Trajectory prior);
 
   /// Poses at each cloud's start time; between them, pose_at interpolates.
