@@ -253,7 +253,7 @@ int main(int argc, char** argv) {
       "map.bt, map_rgb.ot, map_thermal.ot, trajectory.csv, PNG renders and summary.json into\n"
       "OUT. For simulated sessions summary.json also scores the trajectory and the thermal\n"
       "colouring against the ground truth."};
-  std::string session_path, calib_dir, out_dir, backend = "gicp", lidar_source = "auto";
+  std::string session_path, calib_dir, out_dir, backend = "rgicp", lidar_source = "auto";
   double resolution_m = 0.05;
   int max_clouds = 0;
   std::string motion_prior;
@@ -262,7 +262,10 @@ int main(int argc, char** argv) {
       ->required();
   app.add_option("--out", out_dir, "output folder (created)")->required();
   app.add_option("--resolution", resolution_m, "map voxel and octree resolution [m]")->check(CLI::PositiveNumber);
-  app.add_option("--icp", backend, "registration back-end: gicp or icp")->check(CLI::IsMember({"gicp", "icp"}));
+  app.add_option("--icp", backend,
+                 "registration back-end: rgicp (ours: GICP's cost with a robust loss), gicp (PCL's GICP) or icp "
+                 "(PCL's point-to-point)")
+      ->check(CLI::IsMember({"rgicp", "gicp", "icp"}));
   app.add_option("--max-clouds", max_clouds, "map only the first N clouds (0: all)");
   app.add_option("--motion-prior", motion_prior,
                  "CSV time_s,x,y,z,qx,qy,qz,qw of the LIDAR's motion from another sensor (IMU or wheel "

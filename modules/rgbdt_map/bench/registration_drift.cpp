@@ -5,7 +5,8 @@
 //   lidar-only   the mapper's default: constant-velocity guess, LIDAR-only de-skew;
 //   gyro-prior   Odometry::set_motion_prior with the true motion plus a random walk of
 //                0.02 deg and 1 cm per tilt (a tactical-grade IMU and rough wheel odometry);
-//   true-prior   the true motion as the prior: what is left is the registration itself.
+//   true-prior   the true motion as the prior: what is left is the registration itself;
+//   pcl-gicp     LIDAR only with PCL's GICP instead of ours (same cost, no robust loss).
 // and prints, per session and mode, the anchored RMSE (trajectory_rmse_m, the issue's
 // number), the aligned error (trajectory_ate_m) and the final position error.
 // Usage: rgbdt_map_drift [--seeds N] [--duration S] [--dir DIR]
@@ -56,8 +57,10 @@ struct Row {
   double anchored_m, aligned_m, final_m;
 };
 
-Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prior) {
-  Odometry odometry;
+Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prior, IcpBackend backend) {
+  RegistrationOptions options;
+  options.backend = backend;
+  Odometry odometry(options);
   if (prior) odometry.set_motion_prior(*prior);
   for (const core::TimedFile& f : core::read_time_index((session / "clouds" / "index.csv").string())) {
     odometry.add(*cloud::load_pcd(f.file).cloud, f.time_s);
@@ -99,8 +102,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   std::printf("%-6s %-11s %12s %12s %10s\n", "seed", "guess", "anchored m", "aligned m", "final m");
-  const char* modes[] = {"lidar-only", "gyro-prior", "true-prior"};
-  double sum[3][2] = {};
+  const char* modes[] = {"lidar-only", "gyro-prior", "true-prior", "pcl-gicp"};
+  double sum[4][2] = {};
   for (int seed = 1; seed <= seeds; ++seed) {
     const fs::path session = dir / ("seed" + std::to_string(seed));
     if (!fs::exists(session / "ground_truth" / "trajectory.csv")) {
@@ -115,16 +118,16 @@ int main(int argc, char** argv) {
     }
     const Trajectory truth = read_trajectory_csv((session / "ground_truth" / "trajectory.csv").string());
     const Trajectory gyro = noisy_prior(truth, 0.02, 0.01, 1000u + static_cast<unsigned>(seed));
-    const Trajectory* priors[] = {nullptr, &gyro, &truth};
-    for (int m = 0; m < 3; ++m) {
-      const Row r = run(session, truth, priors[m]);
+    const Trajectory* priors[] = {nullptr, &gyro, &truth, nullptr};
+    for (int m = 0; m < 4; ++m) {
+      const Row r = run(session, truth, priors[m], m == 3 ? IcpBackend::kGeneralized : IcpBackend::kRobust);
       sum[m][0] += r.anchored_m;
       sum[m][1] += r.aligned_m;
       std::printf("%-6d %-11s %12.4f %12.4f %10.4f\n", seed, modes[m], r.anchored_m, r.aligned_m, r.final_m);
       std::fflush(stdout);
     }
   }
-  for (int m = 0; m < 3; ++m) {
+  for (int m = 0; m < 4; ++m) {
     std::printf("%-6s %-11s %12.4f %12.4f\n", "mean", modes[m], sum[m][0] / seeds, sum[m][1] / seeds);
   }
   return 0;

@@ -6,6 +6,7 @@
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/registration/gicp.h>
 #include <pcl/registration/icp.h>
+#include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/search/kdtree.h>
 
 #include <chrono>
@@ -160,16 +161,89 @@ XyzCloud::Ptr deskew_points(const TimedPoints& in, const Eigen::Isometry3d& moti
   return deskew_points(in, [&twist](double tau_s) { return core::from_vector6(twist * tau_s); });
 }
 
+using MapTree = pcl::KdTreeFLANN<pcl::PointXYZ>;
+
+/// IcpBackend::kRobust: GICP's cost (Segal et al. 2009: the Mahalanobis distance of each
+/// correspondence under C_target + R C_source R^T), minimised by Gauss-Newton with a Cauchy
+/// weight 1 / (1 + d^2 / robust_scale2) and the correspondences renewed every step.
+/// Steps are taken about the source's origin (the sensor), where rotation and translation
+/// are least coupled. Converged when a step moves less than 1/10 of translation_epsilon_m
+/// and turns less than 1/100 of rotation_epsilon_rad (0.01 mm and 1e-6 rad by default: a
+/// Gauss-Newton step costs one pass, so the tail is cheap). target_tree holds `target`.
+RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source_covariances,
+                               const XyzCloud& target, const MapTree& target_tree,
+                               const Covariances& target_covariances, const Eigen::Isometry3d& guess,
+                               const RegistrationOptions& options) {
+  RegistrationResult result;
+  result.source_points = source.size();
+  result.target_points = target.size();
+  Eigen::Isometry3d T = guess;
+  const double gate2 = options.max_correspondence_m * options.max_correspondence_m;
+  std::vector<int> index(1);
+  std::vector<float> distance2(1);
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    const Eigen::Vector3d c = T.translation();
+    const Eigen::Matrix3d R = T.linear();
+    Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
+    double sum_distance2 = 0.0;
+    std::size_t inliers = 0;
+    for (std::size_t i = 0; i < source.size(); ++i) {
+      const Eigen::Vector3d q = T * source[i].getVector3fMap().cast<double>();
+      pcl::PointXYZ query;
+      query.getVector3fMap() = q.cast<float>();
+      if (target_tree.nearestKSearch(query, 1, index, distance2) < 1 || distance2[0] > gate2) continue;
+      const auto j = static_cast<std::size_t>(index[0]);
+      const Eigen::Matrix3d M = (target_covariances[j] + R * source_covariances[i] * R.transpose()).inverse();
+      const Eigen::Vector3d r = q - target[j].getVector3fMap().cast<double>();
+      const double w = 1.0 / (1.0 + r.dot(M * r) / options.robust_scale2);
+      // d(exp(w) (q - c) + c + t) / d(w, t) at 0.
+      const Eigen::Vector3d v = q - c;
+      Eigen::Matrix<double, 3, 6> J;
+      J << 0.0, v.z(), -v.y(), 1.0, 0.0, 0.0,
+          -v.z(), 0.0, v.x(), 0.0, 1.0, 0.0,
+          v.y(), -v.x(), 0.0, 0.0, 0.0, 1.0;
+      const Eigen::Matrix<double, 6, 3> JtM = J.transpose() * M;
+      H.noalias() += w * JtM * J;
+      g.noalias() += w * JtM * r;
+      sum_distance2 += distance2[0];
+      ++inliers;
+    }
+    if (inliers < 6) break;  // nothing to align: keep the last pose, not converged
+    const Eigen::Matrix<double, 6, 1> delta = -H.ldlt().solve(g);
+    const Eigen::Matrix3d turn = core::from_vector6((core::Vector6d() << delta.head<3>(), 0, 0, 0).finished()).linear();
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.linear() = turn;
+    step.translation() = c - turn * c + delta.tail<3>();
+    T = step * T;
+    result.iterations = iteration + 1;
+    result.fitness_m2 = sum_distance2 / static_cast<double>(inliers);
+    if (delta.tail<3>().norm() < 0.1 * options.translation_epsilon_m &&
+        delta.head<3>().norm() < 0.01 * options.rotation_epsilon_rad) {
+      result.converged = true;
+      break;
+    }
+  }
+  result.T_target_source = T;
+  return result;
+}
+
 }  // namespace
 
 const char* to_string(IcpBackend backend) {
-  return backend == IcpBackend::kGeneralized ? "gicp" : "icp";
+  switch (backend) {
+    case IcpBackend::kRobust: return "rgicp";
+    case IcpBackend::kGeneralized: return "gicp";
+    case IcpBackend::kPointToPoint: return "icp";
+  }
+  return "?";
 }
 
 IcpBackend icp_backend_from_string(const std::string& name) {
+  if (name == "rgicp") return IcpBackend::kRobust;
   if (name == "gicp") return IcpBackend::kGeneralized;
   if (name == "icp") return IcpBackend::kPointToPoint;
-  throw std::invalid_argument("ICP backend '" + name + "' unknown, expected 'gicp' or 'icp'");
+  throw std::invalid_argument("ICP backend '" + name + "' unknown, expected 'rgicp', 'gicp' or 'icp'");
 }
 
 std::string RegistrationOptions::validate() const {
@@ -179,6 +253,7 @@ std::string RegistrationOptions::validate() const {
   if (max_iterations < 1) os << "max_iterations = " << max_iterations << ", expected >= 1; ";
   if (!(translation_epsilon_m > 0.0)) os << "translation_epsilon_m = " << translation_epsilon_m << ", expected > 0; ";
   if (!(rotation_epsilon_rad > 0.0)) os << "rotation_epsilon_rad = " << rotation_epsilon_rad << ", expected > 0; ";
+  if (!(robust_scale2 > 0.0)) os << "robust_scale2 = " << robust_scale2 << ", expected > 0; ";
   if (covariance_neighbours < 3) os << "covariance_neighbours = " << covariance_neighbours << ", expected >= 3; ";
   if (optimizer_iterations < 1) os << "optimizer_iterations = " << optimizer_iterations << ", expected >= 1; ";
   if (!(refine_above_m >= 0.0)) os << "refine_above_m = " << refine_above_m << ", expected >= 0; ";
@@ -220,7 +295,19 @@ RegistrationResult register_clouds(const XyzCloud::ConstPtr& source, const XyzCl
     align(icp, source, guess, result);
     result.fitness_m2 = icp.getFitnessScore(options.max_correspondence_m);
   };
-  if (options.backend == IcpBackend::kGeneralized) {
+  if (options.backend == IcpBackend::kRobust) {
+    CovarianceGicp estimator;
+    configure(estimator, options);
+    MapTree tree;
+    tree.setInputCloud(target);
+    const RegistrationResult r = robust_gicp(*source, *estimator.covariances_of(source), *target, tree,
+                                             *estimator.covariances_of(target), guess, options);
+    result.T_target_source = r.T_target_source;
+    result.converged = r.converged;
+    result.iterations = r.iterations;
+    result.fitness_m2 = r.fitness_m2;
+    result.source_points = source->size();
+  } else if (options.backend == IcpBackend::kGeneralized) {
     Counted<Gicp> gicp;
     run(gicp);
   } else {
@@ -301,6 +388,8 @@ struct Odometry::Impl {
   XyzCloud::Ptr map;
   CovarianceGicp gicp;
   Counted<Icp> icp;
+  MapTree map_tree;                           ///< kRobust: search tree of `map`
+  std::shared_ptr<Covariances> map_covariances;  ///< kRobust: those of `map`
   TimedPoints first_cloud;  ///< the first tilt's centroids, until a velocity is known to de-skew them
   bool have_first = false;
 };
@@ -345,7 +434,9 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   }
   const auto start = Clock::now();
   Impl& m = *impl_;
-  const bool generalized = options_.backend == IcpBackend::kGeneralized;
+  // kRobust and kGeneralized share GICP's covariances and local map.
+  const bool generalized = options_.backend != IcpBackend::kPointToPoint;
+  const bool robust = options_.backend == IcpBackend::kRobust;
   auto velocity_between = [](const TimedPose& a, const TimedPose& b) {
     return core::from_vector6(core::to_vector6(a.T_world_lidar.inverse() * b.T_world_lidar) / (b.time_s - a.time_s));
   };
@@ -405,6 +496,10 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     m.have_first = false;
   } else if (m.map && !m.map->empty()) {
     auto run = [&](auto& icp, const Eigen::Isometry3d& guess, RegistrationResult& r) {
+      if (robust) {
+        r = robust_gicp(*source, *source_covariances, *m.map, m.map_tree, *m.map_covariances, guess, options_);
+        return;
+      }
       icp.setInputSource(source);
       if constexpr (std::is_same_v<std::decay_t<decltype(icp)>, CovarianceGicp>) {
         icp.setSourceCovariances(source_covariances);  // after setInputSource, which resets them
@@ -432,8 +527,10 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
       generalized ? run(m.gicp, r.T_target_source, r) : run(m.icp, r.T_target_source, r);
       r.iterations += first_iterations;
     }
-    r.fitness_m2 = generalized ? m.gicp.getFitnessScore(options_.max_correspondence_m)
-                               : m.icp.getFitnessScore(options_.max_correspondence_m);
+    if (!robust) {  // ours reports it from its last step
+      r.fitness_m2 = generalized ? m.gicp.getFitnessScore(options_.max_correspondence_m)
+                                 : m.icp.getFitnessScore(options_.max_correspondence_m);
+    }
     step.T_world_lidar = r.T_target_source;
   }
   trajectory_.push_back({cloud_time_s, step.T_world_lidar});
@@ -466,7 +563,10 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
       *m.map += *c.points_world;
       if (generalized) covariances->insert(covariances->end(), c.covariances_world->begin(), c.covariances_world->end());
     }
-    if (generalized) {
+    if (robust) {
+      m.map_tree.setInputCloud(m.map);
+      m.map_covariances = covariances;
+    } else if (generalized) {
       m.gicp.setInputTarget(m.map);
       m.gicp.setTargetCovariances(covariances);  // after setInputTarget, which resets them
     } else {
