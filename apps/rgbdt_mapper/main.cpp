@@ -356,13 +356,21 @@ int main(int argc, char** argv) {
       odometry.set_motion_prior(std::move(prior));
     }
     t0 = Clock::now();
-    std::size_t total_points = 0;
+    std::size_t total_points = 0, not_converged = 0;
     double icp_ms = 0.0;
     for (std::size_t k = 0; k < clouds.size(); ++k) {
       const cloud::LoadedCloud loaded = clouds[k].load();
       total_points += loaded.cloud->size();
       const Odometry::Step step = odometry.add(*loaded.cloud, clouds[k].time_s);
       icp_ms += step.registration.time_ms;
+      if (step.registered && !step.registration.converged) {
+        // The pose is kept (the last step's, or the guess when nothing matched): say so.
+        ++not_converged;
+        std::printf("[register %zu/%zu] t=%.2f s: registration did not converge (%d iterations, %zu of %zu "
+                    "points); its pose is kept\n",
+                    k + 1, clouds.size(), clouds[k].time_s, step.registration.iterations,
+                    step.registration.source_points, loaded.cloud->size());
+      }
       if (k % 10 == 0 || k + 1 == clouds.size()) {
         const Eigen::Vector3d p = step.T_world_lidar.translation();
         std::printf("[register %zu/%zu] t=%.2f s  %zu points  pose (%.2f, %.2f, %.2f) m  icp %.0f ms\n", k + 1,
@@ -372,6 +380,10 @@ int main(int argc, char** argv) {
       }
     }
     stage_s["registration"] = seconds_since(t0);
+    if (not_converged > 0) {
+      std::printf("rgbdt_mapper: %zu of %zu registrations did not converge (listed above)\n", not_converged,
+                  clouds.size() - 1);
+    }
     const Trajectory& trajectory = odometry.trajectory();
     write_trajectory_csv((fs::path(out_dir) / "trajectory.csv").string(), trajectory);
 
@@ -483,7 +495,7 @@ int main(int argc, char** argv) {
     std::ostringstream json;
     json << "{\n  \"clouds\": " << clouds.size() << ",\n  \"points\": " << total_points
          << ",\n  \"voxels\": " << map.size() << ",\n  \"resolution_m\": " << json_number(resolution_m)
-         << ",\n  \"icp_backend\": \"" << backend << "\",\n  \"icp_mean_ms\": "
+         << ",\n  \"icp_backend\": \"" << backend << "\",\n  \"registrations_not_converged\": " << not_converged << ",\n  \"icp_mean_ms\": "
          << json_number(icp_ms / std::max<std::size_t>(1, clouds.size() - 1));
     double rgb_fraction = NAN;
     for (const Camera& c : cameras) {

@@ -44,19 +44,23 @@ struct RegistrationOptions {
   /// before registration. [m]
   double source_voxel_m = 0.25;
   double max_correspondence_m = 1.0;  ///< correspondence gate; > expected prediction error [m]
-  int max_iterations = 30;            ///< outer ICP iterations (correspondence updates)
-  /// Converged when an iteration moves the estimate by less than this (GICP: largest change
-  /// of a translation component; ICP: translation norm). 0.1 mm is 20x below the noise
-  /// floor of the registration tests. [m]
+  /// Outer iterations (correspondence updates; ours: Gauss-Newton steps, each with new
+  /// correspondences).
+  int max_iterations = 30;
+  /// Converged when an iteration moves the estimate by less than this (PCL GICP: largest
+  /// change of a translation component; ICP: translation norm; ours: a tenth of it, as the
+  /// step's translation norm, since a Gauss-Newton step is cheap). 0.1 mm is 20x below the
+  /// noise floor of the registration tests. [m]
   double translation_epsilon_m = 1e-4;
-  /// ... and rotates it by less than this (GICP: largest change of a rotation matrix
-  /// element, ~ the angle). [rad]
+  /// ... and rotates it by less than this (PCL GICP: largest change of a rotation matrix
+  /// element, ~ the angle; ours: a hundredth of it, as the step's angle). [rad]
   double rotation_epsilon_rad = 1e-4;
-  /// GICP: neighbours that estimate each point's covariance (PCL's k_correspondences).
+  /// GICP and ours: neighbours that estimate each point's covariance (PCL's
+  /// k_correspondences).
   /// 20 (PCL's default) measured more accurate than 10 on the odometry test (2.5 vs 3.9 cm
   /// at the eighth tilt) for ~10% more time.
   int covariance_neighbours = 20;
-  /// GICP: BFGS iterations per outer iteration (PCL's default: 20).
+  /// PCL GICP only: BFGS iterations per outer iteration (PCL's default: 20).
   int optimizer_iterations = 20;
   /// The tilt is de-skewed with the predicted velocity, registered, and, if the result
   /// differs from the prediction by more than this (translation + rotation seen at 10 m),
