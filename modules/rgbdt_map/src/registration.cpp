@@ -383,6 +383,8 @@ struct Odometry::Impl {
   struct MapCloud {
     XyzCloud::Ptr points_world;
     std::shared_ptr<Covariances> covariances_world;  ///< null for point-to-point ICP
+    TimedPoints sensor;  ///< the centroids in the sensor frame, while the first cloud awaits its re-anchoring
+    double time_s = 0.0;
   };
   std::deque<MapCloud> recent;
   XyzCloud::Ptr map;
@@ -392,6 +394,28 @@ struct Odometry::Impl {
   std::shared_ptr<Covariances> map_covariances;  ///< kRobust: those of `map`
   TimedPoints first_cloud;  ///< the first tilt's centroids, until a velocity is known to de-skew them
   bool have_first = false;
+  TimedPoints anchor;  ///< the first tilt's centroids, until reanchor_first_cloud
+
+  /// Rebuilds the target from `recent`: concatenation, no new covariances; the search
+  /// tree is rebuilt once, here or on the next alignment.
+  void rebuild_target(IcpBackend backend) {
+    const bool generalized = backend != IcpBackend::kPointToPoint;
+    map = std::make_shared<XyzCloud>();
+    auto covariances = std::make_shared<Covariances>();
+    for (const auto& c : recent) {
+      *map += *c.points_world;
+      if (generalized) covariances->insert(covariances->end(), c.covariances_world->begin(), c.covariances_world->end());
+    }
+    if (backend == IcpBackend::kRobust) {
+      map_tree.setInputCloud(map);
+      map_covariances = covariances;
+    } else if (generalized) {
+      gicp.setInputTarget(map);
+      gicp.setTargetCovariances(covariances);  // after setInputTarget, which resets them
+    } else {
+      icp.setInputTarget(map);
+    }
+  }
 };
 
 Odometry::Odometry(const RegistrationOptions& options) : options_(options), impl_(std::make_unique<Impl>()) {
@@ -413,7 +437,7 @@ std::size_t Odometry::memory_bytes() const {
     if (c.covariances_world) bytes += c.covariances_world->size() * sizeof(Eigen::Matrix3d);
   }
   if (impl_->map) bytes += impl_->map->size() * (sizeof(pcl::PointXYZ) + sizeof(Eigen::Matrix3d));
-  bytes += impl_->first_cloud.points.size() * (sizeof(Eigen::Vector3f) + sizeof(float));
+  bytes += (impl_->first_cloud.points.size() + impl_->anchor.points.size()) * (sizeof(Eigen::Vector3f) + sizeof(float));
   return bytes;
 }
 
@@ -547,34 +571,87 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
       (*entry.covariances_world)[i] = R * (*source_covariances)[i] * R.transpose();
     }
   }
+  if (!m.anchor.points.empty()) {
+    entry.sensor = centroids;
+    entry.time_s = cloud_time_s;
+  }
   m.recent.push_back(entry);
   if (poses.size() == 1 && !with_prior) {
     m.first_cloud = centroids;
     m.have_first = true;
+    if (options_.reanchor_first_cloud) m.anchor = centroids;
   }
+  if (m.anchor.points.empty()) m.recent.back().sensor = {};
   while (static_cast<int>(m.recent.size()) > options_.local_map_clouds) m.recent.pop_front();
 
-  if (poses.size() >= 2 || with_prior) {
-    // Rebuild the target: concatenation, no new covariances; the search tree is rebuilt
-    // once, on the next alignment.
-    m.map = std::make_shared<XyzCloud>();
-    auto covariances = std::make_shared<Covariances>();
-    for (const auto& c : m.recent) {
-      *m.map += *c.points_world;
-      if (generalized) covariances->insert(covariances->end(), c.covariances_world->begin(), c.covariances_world->end());
-    }
-    if (robust) {
-      m.map_tree.setInputCloud(m.map);
-      m.map_covariances = covariances;
-    } else if (generalized) {
-      m.gicp.setInputTarget(m.map);
-      m.gicp.setTargetCovariances(covariances);  // after setInputTarget, which resets them
-    } else {
-      m.icp.setInputTarget(m.map);
-    }
+  if (poses.size() >= 2 || with_prior) m.rebuild_target(options_.backend);
+  if (!with_prior && options_.reanchor_first_cloud && !m.anchor.points.empty() &&
+      static_cast<int>(poses.size()) == std::max(options_.local_map_clouds, 3) + 1) {
+    reanchor_first_cloud();
   }
   step.registration.time_ms = ms_since(start);
   return step;
+}
+
+void Odometry::reanchor_first_cloud() {
+  Impl& m = *impl_;
+  const TimedPoints anchor = std::move(m.anchor);
+  m.anchor = {};
+  const auto& poses = trajectory_.poses();
+  auto twist_between = [](const TimedPose& a, const TimedPose& b) {
+    return core::to_vector6(a.T_world_lidar.inverse() * b.T_world_lidar) / (b.time_s - a.time_s);
+  };
+  // The velocity during the first tilt, extrapolated back from the second and third
+  // chords (the first chord is the weakly determined one).
+  const core::Vector6d twist = 2.0 * twist_between(poses[1], poses[2]) - twist_between(poses[2], poses[3]);
+  const XyzCloud::Ptr source = deskew_points(anchor, core::from_vector6(twist));
+  // The clouds of the local map were de-skewed with the velocity known when each came; the
+  // first of them with the start-up guess. De-skew them again along the trajectory as it
+  // now stands (covariances kept: the change is below a voxel's extent).
+  for (auto& c : m.recent) {
+    if (c.sensor.points.empty()) continue;
+    const Eigen::Isometry3d T_world_start = trajectory_.pose_at(c.time_s);
+    const Eigen::Isometry3d T_start_world = T_world_start.inverse();
+    const XyzCloud::Ptr in_start = deskew_points(
+        c.sensor, [&](double tau_s) { return T_start_world * trajectory_.pose_at(c.time_s + tau_s); });
+    auto points = std::make_shared<XyzCloud>();
+    pcl::transformPointCloud(*in_start, *points, T_world_start.matrix().cast<float>());
+    c.points_world = points;
+    c.sensor = {};
+  }
+  m.rebuild_target(options_.backend);
+  const Eigen::Isometry3d& before = poses.front().T_world_lidar;
+  RegistrationResult r;
+  if (options_.backend == IcpBackend::kRobust) {
+    r = robust_gicp(*source, *m.gicp.covariances_of(source), *m.map, m.map_tree, *m.map_covariances, before,
+                    options_);
+  } else {
+    r = register_clouds(source, m.map, before, options_);
+  }
+  // A correction beyond the correspondence gate is not a refinement: keep the start.
+  if (!r.converged || (r.T_target_source.translation() - before.translation()).norm() > options_.max_correspondence_m) {
+    return;
+  }
+  // The world frame in which the first cloud keeps its pose: W' = C W.
+  const Eigen::Isometry3d C = before * r.T_target_source.inverse();
+  std::vector<TimedPose> moved;
+  moved.reserve(poses.size());
+  moved.push_back(poses.front());  // C r = before: the first cloud stays where the map starts
+  for (std::size_t k = 1; k < poses.size(); ++k) moved.push_back({poses[k].time_s, C * poses[k].T_world_lidar});
+  trajectory_ = Trajectory(std::move(moved));
+  const Eigen::Matrix4f C_f = C.matrix().cast<float>();
+  const Eigen::Matrix3d R = C.linear();
+  for (auto& c : m.recent) {
+    auto points = std::make_shared<XyzCloud>();
+    pcl::transformPointCloud(*c.points_world, *points, C_f);
+    c.points_world = points;
+    if (c.covariances_world) {
+      auto covariances = std::make_shared<Covariances>(*c.covariances_world);
+      for (auto& S : *covariances) S = R * S * R.transpose();
+      c.covariances_world = covariances;
+    }
+  }
+  m.rebuild_target(options_.backend);
 }
 
 }  // namespace rgbdt::rgbdt_map

@@ -68,6 +68,14 @@ struct RegistrationOptions {
   /// de-skew error is below it too, under the LIDAR's range noise. [m]
   double refine_above_m = 0.01;
   int local_map_clouds = 8;          ///< how many previous clouds form the local map
+  /// LIDAR only (no motion prior): once the first cloud has left the local map, register
+  /// it once more against the clouds that followed it, de-skewed with the velocity
+  /// extrapolated back from the second and third chords, and re-express the trajectory
+  /// and the local map so that the first pose keeps its place. The first two clouds share
+  /// one velocity in their start-up fixed point (Odometry::add) while the cart's turn rate
+  /// changes between them: on the sim street the first chord's yaw rate came out at twice
+  /// the truth, a heading error the whole trajectory carried.
+  bool reanchor_first_cloud = true;
   double min_range_m = 0.5;          ///< points nearer (the cart itself) are ignored [m]
   double max_range_m = 40.0;         ///< farther points are ignored [m]
   std::string validate() const;
@@ -142,7 +150,10 @@ class Odometry {
   /// Throws std::invalid_argument on an empty trajectory, std::logic_error after add().
   void set_motion_prior(Trajectory prior);
 
-  /// Poses at each cloud's start time; between them, pose_at interpolates.
+  /// Poses at each cloud's start time; between them, pose_at interpolates. With
+  /// RegistrationOptions::reanchor_first_cloud, the poses that add() returned for the
+  /// first local_map_clouds clouds are re-expressed once (a rigid motion of all of them),
+  /// when the next cloud is added: read the trajectory here, after the last add().
   const Trajectory& trajectory() const { return trajectory_; }
 
   /// Heap memory held for the local map (points, covariances, search tree) [bytes].
@@ -154,6 +165,7 @@ class Odometry {
   Trajectory trajectory_;
   Trajectory prior_;  ///< empty: LIDAR-only
   std::unique_ptr<Impl> impl_;
+  void reanchor_first_cloud();
 };
 
 }  // namespace rgbdt::rgbdt_map
