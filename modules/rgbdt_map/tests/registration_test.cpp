@@ -162,8 +162,8 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   EXPECT_LT(core::translation_error_m(lidar_only.trajectory().poses().front().T_world_lidar,
                                       lidar_only_kept_start.trajectory().poses().front().T_world_lidar),
             1e-12);
-  // Measured 2.9 cm against 3.4 cm (on the 100 m streets of rgbdt_map_drift it was better
-  // on 6 of 7 seeds, mean 0.21 against 0.23 m).
+  // Measured 1.3 cm against 3.4 cm (on the 7 100 m streets of rgbdt_map_drift it was better
+  // on every seed, mean 0.083 against 0.231 m).
   EXPECT_LT(rmse_lidar_only, rmse_kept_start);
   const double ate_ours = trajectory_ate_m(lidar_only.trajectory(), truth);
   const double ate_pcl = trajectory_ate_m(pcl_gicp.trajectory(), truth);
@@ -171,8 +171,8 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
               rmse_lidar_only, rmse_guided, clouds.size(), ate_ours, ate_pcl);
   // Our robust registration against PCL's GICP (same cost, no robust loss), LIDAR only.
   EXPECT_LT(ate_ours, ate_pcl);
-  // Measured: 2.9 cm LIDAR only, 0.24 cm with the prior (our registration; with PCL's
-  // GICP 3.7 and 0.33 cm). Aligned, LIDAR only: ours 0.79 cm, PCL's GICP 0.88 cm; the gap
+  // Measured: 1.3 cm LIDAR only, 0.24 cm with the prior (our registration; with PCL's
+  // GICP 3.7 and 0.33 cm). Aligned, LIDAR only: ours 0.78 cm, PCL's GICP 0.88 cm; the gap
   // grows with the length of the street (rgbdt_map_drift: 1.6 vs 15 cm over 100 m). With the true motion only the
   // registration noise is left (2 mm per registration in the two-tilt test); 1 cm leaves
   // room for its random walk over 25 tilts.
