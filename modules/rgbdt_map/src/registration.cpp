@@ -437,7 +437,9 @@ std::size_t Odometry::memory_bytes() const {
     if (c.covariances_world) bytes += c.covariances_world->size() * sizeof(Eigen::Matrix3d);
   }
   if (impl_->map) bytes += impl_->map->size() * (sizeof(pcl::PointXYZ) + sizeof(Eigen::Matrix3d));
-  bytes += (impl_->first_cloud.points.size() + impl_->anchor.points.size()) * (sizeof(Eigen::Vector3f) + sizeof(float));
+  std::size_t timed_points = impl_->first_cloud.points.size() + impl_->anchor.points.size();
+  for (const auto& c : impl_->recent) timed_points += c.sensor.points.size();
+  bytes += timed_points * (sizeof(Eigen::Vector3f) + sizeof(float));
   return bytes;
 }
 
@@ -581,7 +583,6 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     m.have_first = true;
     if (options_.reanchor_first_cloud) m.anchor = centroids;
   }
-  if (m.anchor.points.empty()) m.recent.back().sensor = {};
   while (static_cast<int>(m.recent.size()) > options_.local_map_clouds) m.recent.pop_front();
 
   if (poses.size() >= 2 || with_prior) m.rebuild_target(options_.backend);
