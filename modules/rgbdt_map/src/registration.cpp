@@ -599,7 +599,7 @@ void Odometry::reanchor_first_cloud() {
   const TimedPoints anchor = std::move(m.anchor);
   m.anchor = {};
   const auto& poses = trajectory_.poses();
-  auto twist_between = [](const TimedPose& a, const TimedPose& b) {
+  auto twist_between = [](const TimedPose& a, const TimedPose& b) -> core::Vector6d {  // a value: an Eigen expression would outlive its operand
     return core::to_vector6(a.T_world_lidar.inverse() * b.T_world_lidar) / (b.time_s - a.time_s);
   };
   // The velocity during the first tilt, extrapolated back from the second and third
