@@ -384,6 +384,16 @@ int main(int argc, char** argv) {
       std::printf("rgbdt_mapper: %zu of %zu registrations did not converge (listed above)\n", not_converged,
                   clouds.size() - 1);
     }
+    const Odometry::Reanchoring& reanchoring = odometry.reanchoring();
+    if (reanchoring.attempted) {
+      const Eigen::Isometry3d& C = reanchoring.correction;
+      std::printf("rgbdt_mapper: first tilt registered again against the tilts that followed: correction %.3f m, "
+                  "%.3f deg, %s\n",
+                  C.translation().norm(), Eigen::AngleAxisd(C.linear()).angle() * 180.0 / M_PI,
+                  reanchoring.applied ? "applied"
+                                      : "NOT applied (did not converge or beyond the correspondence gate); the "
+                                        "start-up poses are kept");
+    }
     const Trajectory& trajectory = odometry.trajectory();
     write_trajectory_csv((fs::path(out_dir) / "trajectory.csv").string(), trajectory);
 
@@ -495,7 +505,9 @@ int main(int argc, char** argv) {
     std::ostringstream json;
     json << "{\n  \"clouds\": " << clouds.size() << ",\n  \"points\": " << total_points
          << ",\n  \"voxels\": " << map.size() << ",\n  \"resolution_m\": " << json_number(resolution_m)
-         << ",\n  \"icp_backend\": \"" << backend << "\",\n  \"registrations_not_converged\": " << not_converged << ",\n  \"icp_mean_ms\": "
+         << ",\n  \"icp_backend\": \"" << backend << "\",\n  \"registrations_not_converged\": " << not_converged
+         << ",\n  \"first_tilt_reanchored\": " << (odometry.reanchoring().applied ? "true" : "false")
+         << ",\n  \"icp_mean_ms\": "
          << json_number(icp_ms / std::max<std::size_t>(1, clouds.size() - 1));
     double rgb_fraction = NAN;
     for (const Camera& c : cameras) {

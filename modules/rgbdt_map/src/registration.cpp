@@ -161,6 +161,11 @@ XyzCloud::Ptr deskew_points(const TimedPoints& in, const Eigen::Isometry3d& moti
   return deskew_points(in, [&twist](double tau_s) { return core::from_vector6(twist * tau_s); });
 }
 
+/// The constant twist that moves pose a to pose b in their time apart (per second, in a's frame).
+core::Vector6d twist_between(const TimedPose& a, const TimedPose& b) {
+  return core::to_vector6(a.T_world_lidar.inverse() * b.T_world_lidar) / (b.time_s - a.time_s);
+}
+
 using MapTree = pcl::KdTreeFLANN<pcl::PointXYZ>;
 
 /// IcpBackend::kRobust: GICP's cost (Segal et al. 2009: the Mahalanobis distance of each
@@ -463,9 +468,7 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   // kRobust and kGeneralized share GICP's covariances and local map.
   const bool generalized = options_.backend != IcpBackend::kPointToPoint;
   const bool robust = options_.backend == IcpBackend::kRobust;
-  auto velocity_between = [](const TimedPose& a, const TimedPose& b) {
-    return core::from_vector6(core::to_vector6(a.T_world_lidar.inverse() * b.T_world_lidar) / (b.time_s - a.time_s));
-  };
+  auto velocity_between = [](const TimedPose& a, const TimedPose& b) { return core::from_vector6(twist_between(a, b)); };
   // Constant-velocity prediction from the last two poses.
   Eigen::Isometry3d predicted = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d motion_per_s = Eigen::Isometry3d::Identity();
@@ -599,9 +602,6 @@ void Odometry::reanchor_first_cloud() {
   const TimedPoints anchor = std::move(m.anchor);
   m.anchor = {};
   const auto& poses = trajectory_.poses();
-  auto twist_between = [](const TimedPose& a, const TimedPose& b) -> core::Vector6d {  // a value: an Eigen expression would outlive its operand
-    return core::to_vector6(a.T_world_lidar.inverse() * b.T_world_lidar) / (b.time_s - a.time_s);
-  };
   // The velocity during the first tilt, extrapolated back from the second and third
   // chords (the first chord is the weakly determined one).
   const core::Vector6d twist = 2.0 * twist_between(poses[1], poses[2]) - twist_between(poses[2], poses[3]);
@@ -629,12 +629,16 @@ void Odometry::reanchor_first_cloud() {
   } else {
     r = register_clouds(source, m.map, before, options_);
   }
+  // The world frame in which the first cloud keeps its pose: W' = C W.
+  const Eigen::Isometry3d C = before * r.T_target_source.inverse();
+  reanchoring_.attempted = true;
+  reanchoring_.registration = r;
+  reanchoring_.correction = C;
   // A correction beyond the correspondence gate is not a refinement: keep the start.
   if (!r.converged || (r.T_target_source.translation() - before.translation()).norm() > options_.max_correspondence_m) {
     return;
   }
-  // The world frame in which the first cloud keeps its pose: W' = C W.
-  const Eigen::Isometry3d C = before * r.T_target_source.inverse();
+  reanchoring_.applied = true;
   std::vector<TimedPose> moved;
   moved.reserve(poses.size());
   moved.push_back(poses.front());  // C r = before: the first cloud stays where the map starts

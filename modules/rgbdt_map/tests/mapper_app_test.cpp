@@ -257,6 +257,8 @@ TEST(MapperApp, MapsARawSimulatedStreetSessionThroughTheAssembler) {
   // 6 s of 0.6 s tilts: 10 tilts, the last one cut by the end of the stream.
   EXPECT_GE(json_value(json, "clouds"), 9) << json;
   EXPECT_LT(json_value(json, "trajectory_rmse_m"), 0.05) << json;
+  // The first tilt leaves the 8-tilt local map at the 9th and is registered again.
+  EXPECT_NE(json.find("\"first_tilt_reanchored\": true"), std::string::npos) << json;
   // The mapping targets: > 95 % of the points each camera has in its image coloured, and a
   // mean thermal error < 0.5 K on the coloured points against the sim's true apparent
   // temperature of the surface each beam hit.

@@ -158,6 +158,11 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   RecordProperty("rmse_guided_m", std::to_string(rmse_guided));
   const double rmse_kept_start = trajectory_rmse_m(lidar_only_kept_start.trajectory(), truth);
   std::printf("LIDAR only, first cloud re-anchored %.4f m, not %.4f m\n", rmse_lidar_only, rmse_kept_start);
+  // Re-anchoring runs LIDAR only, once, and says what it did.
+  EXPECT_TRUE(lidar_only.reanchoring().applied);
+  EXPECT_TRUE(lidar_only.reanchoring().registration.converged);
+  EXPECT_FALSE(lidar_only_kept_start.reanchoring().attempted);
+  EXPECT_FALSE(guided.reanchoring().attempted);
   // Re-anchoring moves the other poses, never the first (it is where the map starts).
   EXPECT_LT(core::translation_error_m(lidar_only.trajectory().poses().front().T_world_lidar,
                                       lidar_only_kept_start.trajectory().poses().front().T_world_lidar),

@@ -157,6 +157,19 @@ class Odometry {
   /// when the next cloud is added: read the trajectory here, after the last add().
   const Trajectory& trajectory() const { return trajectory_; }
 
+  /// What RegistrationOptions::reanchor_first_cloud did. Not attempted: the option is off,
+  /// a motion prior is set, or too few clouds came. Attempted but not applied: the
+  /// registration did not converge or moved the first cloud farther than
+  /// max_correspondence_m, and the start was kept.
+  struct Reanchoring {
+    bool attempted = false;
+    bool applied = false;
+    /// New world from old: every pose after the first became correction * pose.
+    Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
+    RegistrationResult registration;  ///< the first cloud against the clouds that followed it
+  };
+  const Reanchoring& reanchoring() const { return reanchoring_; }
+
   /// Heap memory held for the local map (points, covariances, search tree) [bytes].
   std::size_t memory_bytes() const;
 
@@ -166,6 +179,7 @@ class Odometry {
   Trajectory trajectory_;
   Trajectory prior_;  ///< empty: LIDAR-only
   std::unique_ptr<Impl> impl_;
+  Reanchoring reanchoring_;
   void reanchor_first_cloud();
 };
 
