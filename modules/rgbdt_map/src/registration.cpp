@@ -174,7 +174,9 @@ using MapTree = pcl::KdTreeFLANN<pcl::PointXYZ>;
 /// Steps are taken about the source's origin (the sensor), where rotation and translation
 /// are least coupled. Converged when a step moves less than 1/10 of translation_epsilon_m
 /// and turns less than 1/100 of rotation_epsilon_rad (0.01 mm and 1e-6 rad by default: a
-/// Gauss-Newton step costs one pass, so the tail is cheap). target_tree holds `target`.
+/// Gauss-Newton step costs one pass, so the tail is cheap), or when the pose comes back to
+/// where it was 2-4 steps before, every step since below the epsilons themselves (the
+/// correspondences cycle). target_tree holds `target`.
 RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source_covariances,
                                const XyzCloud& target, const MapTree& target_tree,
                                const Covariances& target_covariances, const Eigen::Isometry3d& guess,
@@ -186,6 +188,13 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
   const double gate2 = options.max_correspondence_m * options.max_correspondence_m;
   std::vector<int> index(1);
   std::vector<float> distance2(1);
+  // The poses of the last iterations, to tell a cycle (see below).
+  struct Visited {
+    Eigen::Isometry3d T;
+    bool fine_step_after;  ///< the step that left this pose was below the epsilons
+  };
+  constexpr std::size_t kCycleLength = 4;
+  std::vector<Visited> recent{{guess, false}};
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T.translation();
     const Eigen::Matrix3d R = T.linear();
@@ -223,11 +232,29 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
     T = step * T;
     result.iterations = iteration + 1;
     result.fitness_m2 = sum_distance2 / static_cast<double>(inliers);
-    if (delta.tail<3>().norm() < 0.1 * options.translation_epsilon_m &&
-        delta.head<3>().norm() < 0.01 * options.rotation_epsilon_rad) {
+    const double step_m = delta.tail<3>().norm(), step_rad = delta.head<3>().norm();
+    if (step_m < 0.1 * options.translation_epsilon_m && step_rad < 0.01 * options.rotation_epsilon_rad) {
       result.converged = true;
       break;
     }
+    // Renewed correspondences can cycle through two to four sets whose minima lie hundredths
+    // of a millimetre apart: the steps then go round for good. Back where it was two to four
+    // steps ago, with every step of the cycle below the epsilons, is converged too.
+    const bool fine_step = step_m < options.translation_epsilon_m && step_rad < options.rotation_epsilon_rad;
+    recent.back().fine_step_after = fine_step;
+    for (std::size_t back = 2; fine_step && back <= recent.size(); ++back) {
+      const Visited& then = recent[recent.size() - back];
+      if (!then.fine_step_after) break;  // every step since then must be fine
+      const Eigen::Isometry3d cycle = then.T.inverse() * T;
+      if (cycle.translation().norm() < 0.1 * options.translation_epsilon_m &&
+          Eigen::AngleAxisd(cycle.linear()).angle() < 0.01 * options.rotation_epsilon_rad) {
+        result.converged = true;
+        break;
+      }
+    }
+    if (result.converged) break;
+    if (recent.size() == kCycleLength) recent.erase(recent.begin());
+    recent.push_back({T, false});
   }
   result.T_target_source = T;
   return result;

@@ -145,10 +145,14 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   Odometry lidar_only_kept_start(kept_start);
   const std::vector<core::TimedFile> clouds = core::read_time_index((dir / "clouds" / "index.csv").string());
   ASSERT_GE(clouds.size(), 20u);
+  int not_converged = 0;
   for (std::size_t k = 0; k < clouds.size(); ++k) {
     const cloud::LoadedCloud loaded = cloud::load_pcd(clouds[k].file);
-    EXPECT_EQ(lidar_only.add(*loaded.cloud, clouds[k].time_s).registered, k > 0);
-    EXPECT_EQ(guided.add(*loaded.cloud, clouds[k].time_s).registered, k > 0);
+    for (Odometry* odometry : {&lidar_only, &guided}) {
+      const Odometry::Step step = odometry->add(*loaded.cloud, clouds[k].time_s);
+      EXPECT_EQ(step.registered, k > 0);
+      if (step.registered && !step.registration.converged) ++not_converged;
+    }
     pcl_gicp.add(*loaded.cloud, clouds[k].time_s);
     lidar_only_kept_start.add(*loaded.cloud, clouds[k].time_s);
   }
@@ -183,6 +187,10 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   // room for its random walk over 25 tilts.
   EXPECT_LT(rmse_guided, 0.01);
   EXPECT_LT(rmse_guided, rmse_lidar_only);
+  // Every registration converges, also those whose correspondences end up cycling between
+  // sets with minima hundredths of a millimetre apart (2 of 2 x 24 did not before that was
+  // told apart from running out of iterations).
+  EXPECT_EQ(not_converged, 0);
   EXPECT_THROW(guided.set_motion_prior(Trajectory()), std::invalid_argument);
   EXPECT_THROW(guided.set_motion_prior(truth), std::logic_error);  // after add()
 }

@@ -49,8 +49,10 @@ struct RegistrationOptions {
   int max_iterations = 30;
   /// Converged when an iteration moves the estimate by less than this (PCL GICP: largest
   /// change of a translation component; ICP: translation norm; ours: a tenth of it, as the
-  /// step's translation norm, since a Gauss-Newton step is cheap). 0.1 mm is 20x below the
-  /// noise floor of the registration tests. [m]
+  /// step's translation norm, since a Gauss-Newton step is cheap; or when its steps, each
+  /// below this, bring the pose back to where it was 2-4 steps before: the correspondences
+  /// then cycle between sets whose minima lie hundredths of a millimetre apart). 0.1 mm is
+  /// 20x below the noise floor of the registration tests. [m]
   double translation_epsilon_m = 1e-4;
   /// ... and rotates it by less than this (PCL GICP: largest change of a rotation matrix
   /// element, ~ the angle; ours: a hundredth of it, as the step's angle). [rad]
