@@ -195,6 +195,10 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
   };
   constexpr std::size_t kCycleLength = 4;
   std::vector<Visited> recent{{guess, false}};
+  // The tail test: a move this small is no move at all.
+  auto settled = [&options](double translation_m, double angle_rad) {
+    return translation_m < 0.1 * options.translation_epsilon_m && angle_rad < 0.01 * options.rotation_epsilon_rad;
+  };
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T.translation();
     const Eigen::Matrix3d R = T.linear();
@@ -233,7 +237,7 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
     result.iterations = iteration + 1;
     result.fitness_m2 = sum_distance2 / static_cast<double>(inliers);
     const double step_m = delta.tail<3>().norm(), step_rad = delta.head<3>().norm();
-    if (step_m < 0.1 * options.translation_epsilon_m && step_rad < 0.01 * options.rotation_epsilon_rad) {
+    if (settled(step_m, step_rad)) {
       result.converged = true;
       break;
     }
@@ -246,8 +250,7 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
       const Visited& then = recent[recent.size() - back];
       if (!then.fine_step_after) break;  // every step since then must be fine
       const Eigen::Isometry3d cycle = then.T.inverse() * T;
-      if (cycle.translation().norm() < 0.1 * options.translation_epsilon_m &&
-          Eigen::AngleAxisd(cycle.linear()).angle() < 0.01 * options.rotation_epsilon_rad) {
+      if (settled(cycle.translation().norm(), Eigen::AngleAxisd(cycle.linear()).angle())) {
         result.converged = true;
         break;
       }
