@@ -9,9 +9,12 @@
 //   pcl-gicp     LIDAR only with PCL's GICP instead of ours (same cost, no robust loss).
 // and prints, per session and mode, the anchored RMSE (trajectory_rmse_m, the issue's
 // number), the aligned error (trajectory_ate_m), the final position error, the height part
-// of the anchored error and the poses' mean pitch error relative to the first pose.
+// of the anchored error, the poses' mean pitch error relative to the first pose and its
+// standard deviation over the poses (each pose's attitude noise: the anchored error is
+// mostly the first pose's share of it, times the distance travelled).
 // Usage: rgbdt_map_drift [--seeds N] [--duration S] [--dir DIR]
 //   sessions are written to DIR/seed<k> (default <tmp>/rgbdt_map_drift) and reused.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -58,6 +61,7 @@ struct Row {
   double anchored_m, aligned_m, final_m;
   double vertical_m;  ///< the vertical part of anchored_m (RMS of the height error)
   double pitch_deg;   ///< mean pitch error of the poses, relative to the first pose
+  double pitch_sd_deg;  ///< its standard deviation over the poses
 };
 
 Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prior, IcpBackend backend) {
@@ -76,17 +80,20 @@ Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prio
       ((T_truth_estimate * last.T_world_lidar).translation() - truth.pose_at(last.time_s).translation()).norm();
   // Where the anchored error lies: the truth moves on a level street, so a height error
   // that grows with distance is a pitch error of the whole map relative to the first pose.
-  double vertical2 = 0.0, pitch_rad = 0.0;
+  double vertical2 = 0.0, pitch_rad = 0.0, pitch2_rad2 = 0.0;
   for (const TimedPose& p : estimate.poses()) {
     const Eigen::Isometry3d T_truth = truth.pose_at(p.time_s);
     const Eigen::Isometry3d anchored = T_truth_estimate * p.T_world_lidar;
     const double dz = anchored.translation().z() - T_truth.translation().z();
     vertical2 += dz * dz;
-    pitch_rad += core::to_vector6(T_truth.inverse() * anchored)[1];
+    const double pitch = core::to_vector6(T_truth.inverse() * anchored)[1];
+    pitch_rad += pitch;
+    pitch2_rad2 += pitch * pitch;
   }
   const auto n = static_cast<double>(estimate.size());
+  const double mean_pitch = pitch_rad / n;
   return {trajectory_rmse_m(estimate, truth), trajectory_ate_m(estimate, truth), final_m, std::sqrt(vertical2 / n),
-          pitch_rad / n * 180.0 / M_PI};
+          mean_pitch * 180.0 / M_PI, std::sqrt(std::max(0.0, pitch2_rad2 / n - mean_pitch * mean_pitch)) * 180.0 / M_PI};
 }
 
 }  // namespace
@@ -116,10 +123,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rgbdt_map_drift: --seeds %d, --duration %g: expected >= 1 and > 5 s\n", seeds, duration_s);
     return 2;
   }
-  std::printf("%-6s %-11s %12s %12s %10s %11s %10s\n", "seed", "guess", "anchored m", "aligned m", "final m",
-              "of it: z m", "pitch deg");
+  std::printf("%-6s %-11s %12s %12s %10s %11s %10s %13s\n", "seed", "guess", "anchored m", "aligned m", "final m",
+              "of it: z m", "pitch deg", "pitch sd deg");
   const char* modes[] = {"lidar-only", "gyro-prior", "true-prior", "pcl-gicp"};
-  double sum[4][4] = {};
+  double sum[4][5] = {};
   for (int seed = 1; seed <= seeds; ++seed) {
     const fs::path session = dir / ("seed" + std::to_string(seed));
     if (!fs::exists(session / "ground_truth" / "trajectory.csv")) {
@@ -141,14 +148,15 @@ int main(int argc, char** argv) {
       sum[m][1] += r.aligned_m;
       sum[m][2] += r.vertical_m;
       sum[m][3] += r.pitch_deg;
-      std::printf("%-6d %-11s %12.4f %12.4f %10.4f %11.4f %10.3f\n", seed, modes[m], r.anchored_m, r.aligned_m,
-                  r.final_m, r.vertical_m, r.pitch_deg);
+      sum[m][4] += r.pitch_sd_deg;
+      std::printf("%-6d %-11s %12.4f %12.4f %10.4f %11.4f %10.3f %13.3f\n", seed, modes[m], r.anchored_m, r.aligned_m,
+                  r.final_m, r.vertical_m, r.pitch_deg, r.pitch_sd_deg);
       std::fflush(stdout);
     }
   }
   for (int m = 0; m < 4; ++m) {
-    std::printf("%-6s %-11s %12.4f %12.4f %10s %11.4f %10.3f\n", "mean", modes[m], sum[m][0] / seeds,
-                sum[m][1] / seeds, "", sum[m][2] / seeds, sum[m][3] / seeds);
+    std::printf("%-6s %-11s %12.4f %12.4f %10s %11.4f %10.3f %13.3f\n", "mean", modes[m], sum[m][0] / seeds,
+                sum[m][1] / seeds, "", sum[m][2] / seeds, sum[m][3] / seeds, sum[m][4] / seeds);
   }
   return 0;
 }
