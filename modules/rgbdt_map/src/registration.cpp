@@ -263,6 +263,165 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
   return result;
 }
 
+
+/// The start-up's motion: the first clouds' trajectory as one smooth curve from the first
+/// cloud's start, T_world_lidar(tau) = from_vector6(c1 tau + c2 tau^2 + c3 tau^3), so that
+/// T(0) = I is the world. Three 6-vectors: a cubic fits the sim street's first 3 s to
+/// 0.013 deg and 0.5 mm, a quadratic to 0.1 deg.
+using StartUpCoefficients = Eigen::Matrix<double, 18, 1>;
+
+core::Vector6d start_up_vector(const StartUpCoefficients& c, double tau_s) {
+  return tau_s * (c.segment<6>(0) + tau_s * (c.segment<6>(6) + tau_s * c.segment<6>(12)));
+}
+
+struct StartUpCloud {
+  double tau_s = 0.0;  ///< the cloud's start after the first cloud's
+  TimedPoints sensor;
+};
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d S;
+  S << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return S;
+}
+
+/// d(R(w) x + t)/d(w, t) for the rotation vector w: R(w + d) = exp(J_l(w) d) R(w), so
+/// d(R x)/dw = -[R x]x J_l(w).
+Eigen::Matrix<double, 3, 6> point_jacobian(const Eigen::Vector3d& w, const Eigen::Vector3d& Rx) {
+  const double theta = w.norm();
+  const Eigen::Matrix3d W = skew(w);
+  Eigen::Matrix3d Jl = Eigen::Matrix3d::Identity();
+  if (theta > 1e-9) {
+    const double t2 = theta * theta;
+    Jl += (1.0 - std::cos(theta)) / t2 * W + (theta - std::sin(theta)) / (t2 * theta) * W * W;
+  } else {
+    Jl += 0.5 * W;
+  }
+  Eigen::Matrix<double, 3, 6> J;
+  J.leftCols<3>() = -skew(Rx) * Jl;
+  J.rightCols<3>().setIdentity();
+  return J;
+}
+
+/// Fits the coefficients to poses (tau_s, T_world_lidar) by least squares on from_vector6's
+/// parameters (the first pose is the world: tau 0, identity).
+StartUpCoefficients fit_start_up(const std::vector<std::pair<double, Eigen::Isometry3d>>& poses) {
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(poses.size()) * 6, 18);
+  Eigen::VectorXd b(static_cast<Eigen::Index>(poses.size()) * 6);
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    const double tau = poses[k].first;
+    const auto row = static_cast<Eigen::Index>(k) * 6;
+    for (int power = 0; power < 3; ++power) {
+      A.block<6, 6>(row, power * 6) = std::pow(tau, power + 1) * Eigen::Matrix<double, 6, 6>::Identity();
+    }
+    b.segment<6>(row) = core::to_vector6(poses[k].second);
+  }
+  return A.colPivHouseholderQr().solve(b);
+}
+
+/// Every cloud of the start-up registered against all the others at once, their points
+/// placed along one smooth trajectory (StartUpCoefficients): Gauss-Newton on GICP's cost
+/// with the Cauchy loss of robust_gicp, each correspondence's two ends moving with the
+/// trajectory, the correspondences renewed every step. The chord between two start poses
+/// gives a tilt the rotation rate of 0.3-0.6 s before it; the curve gives each point the
+/// pose at its own time. Covariances: those of each cloud as placed by the initial guess,
+/// in the world (the curve moves it by less than a voxel).
+struct StartUpResult {
+  StartUpCoefficients coefficients = StartUpCoefficients::Zero();
+  bool converged = false;
+  int iterations = 0;
+  std::vector<XyzCloud::Ptr> world;  ///< each cloud's points along the solved curve
+};
+
+StartUpResult solve_start_up(const std::vector<StartUpCloud>& clouds, const StartUpCoefficients& guess,
+                             CovarianceGicp& gicp, const RegistrationOptions& options) {
+  StartUpResult result;
+  result.coefficients = guess;
+
+  const std::size_t n = clouds.size();
+  const double gate2 = options.max_correspondence_m * options.max_correspondence_m;
+  double tau_max = 0.0;
+  for (const auto& c : clouds) {
+    for (float t : c.sensor.t_s) tau_max = std::max(tau_max, c.tau_s + t);
+  }
+  auto place = [&](const StartUpCoefficients& c) {
+    std::vector<XyzCloud::Ptr> world(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double tau0 = clouds[i].tau_s;
+      world[i] = deskew_points(clouds[i].sensor,
+                               [&c, tau0](double t) { return core::from_vector6(start_up_vector(c, tau0 + t)); });
+    }
+    return world;
+  };
+  std::vector<std::shared_ptr<Covariances>> covariances(n);
+  {
+    const auto world = place(guess);
+    for (std::size_t i = 0; i < n; ++i) covariances[i] = gicp.covariances_of(world[i]);
+  }
+  std::vector<int> index(1);
+  std::vector<float> distance2(1);
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    const StartUpCoefficients c = result.coefficients;
+    const auto world = place(c);
+    Eigen::Matrix<double, 18, 18> H = Eigen::Matrix<double, 18, 18>::Zero();
+    Eigen::Matrix<double, 18, 1> g = Eigen::Matrix<double, 18, 1>::Zero();
+    // d(point)/d(coefficients) for point p of cloud i.
+    auto jacobian = [&](std::size_t i, std::size_t p) -> Eigen::Matrix<double, 3, 18> {
+      const double tau = clouds[i].tau_s + clouds[i].sensor.t_s[p];
+      const core::Vector6d v = start_up_vector(c, tau);
+      const Eigen::Vector3d w = v.head<3>();
+      const Eigen::Vector3d Rx = core::rotation_from_vector(w) * clouds[i].sensor.points[p].cast<double>();
+      const Eigen::Matrix<double, 3, 6> J6 = point_jacobian(w, Rx);
+      Eigen::Matrix<double, 3, 18> J;
+      J << tau * J6, tau * tau * J6, tau * tau * tau * J6;
+      return J;
+    };
+    std::size_t inliers = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      // The other clouds, with each point's owner.
+      auto others = std::make_shared<XyzCloud>();
+      std::vector<std::pair<std::size_t, std::size_t>> owner;
+      for (std::size_t j = 0; j < n; ++j) {
+        if (j == i) continue;
+        *others += *world[j];
+        for (std::size_t p = 0; p < world[j]->size(); ++p) owner.emplace_back(j, p);
+      }
+      MapTree tree;
+      tree.setInputCloud(others);
+      for (std::size_t p = 0; p < world[i]->size(); ++p) {
+        const pcl::PointXYZ& query = (*world[i])[p];
+        if (tree.nearestKSearch(query, 1, index, distance2) < 1 || distance2[0] > gate2) continue;
+        const auto [j, q] = owner[static_cast<std::size_t>(index[0])];
+        const Eigen::Matrix3d M = ((*covariances[i])[p] + (*covariances[j])[q]).inverse();
+        const Eigen::Vector3d r = (query.getVector3fMap() - (*world[j])[q].getVector3fMap()).cast<double>();
+        const double weight = 1.0 / (1.0 + r.dot(M * r) / options.robust_scale2);
+        const Eigen::Matrix<double, 3, 18> J = jacobian(i, p) - jacobian(j, q);
+        const Eigen::Matrix<double, 18, 3> JtM = J.transpose() * M;
+        H.noalias() += weight * JtM * J;
+        g.noalias() += weight * JtM * r;
+        ++inliers;
+      }
+    }
+    if (inliers < 18) break;
+    const StartUpCoefficients delta = -H.ldlt().solve(g);
+    result.coefficients += delta;
+    result.iterations = iteration + 1;
+    // The step's largest effect on a pose over the start-up's span.
+    double step_m = 0.0, step_rad = 0.0;
+    for (int k = 1; k <= 10; ++k) {
+      const core::Vector6d d = start_up_vector(delta, tau_max * k / 10.0);
+      step_rad = std::max(step_rad, d.head<3>().norm());
+      step_m = std::max(step_m, d.tail<3>().norm());
+    }
+    if (step_m < options.translation_epsilon_m && step_rad < options.rotation_epsilon_rad) {
+      result.converged = true;
+      break;
+    }
+  }
+  result.world = place(result.coefficients);
+  return result;
+}
+
 }  // namespace
 
 const char* to_string(IcpBackend backend) {
@@ -289,6 +448,12 @@ std::string RegistrationOptions::validate() const {
   if (!(translation_epsilon_m > 0.0)) os << "translation_epsilon_m = " << translation_epsilon_m << ", expected > 0; ";
   if (!(rotation_epsilon_rad > 0.0)) os << "rotation_epsilon_rad = " << rotation_epsilon_rad << ", expected > 0; ";
   if (!(robust_scale2 > 0.0)) os << "robust_scale2 = " << robust_scale2 << ", expected > 0; ";
+  if (start_up_clouds != 0 && (start_up_clouds < 4 || start_up_clouds > 8)) {
+    os << "start_up_clouds = " << start_up_clouds << ", expected 0 (off) or 4-8; ";
+  }
+  if (!(merged_local_map_m >= 0.0 && merged_local_map_m < 10.0)) {
+    os << "merged_local_map_m = " << merged_local_map_m << ", expected 0 (off) or a voxel size in m; ";
+  }
   if (covariance_neighbours < 3) os << "covariance_neighbours = " << covariance_neighbours << ", expected >= 3; ";
   if (optimizer_iterations < 1) os << "optimizer_iterations = " << optimizer_iterations << ", expected >= 1; ";
   if (!(refine_above_m >= 0.0)) os << "refine_above_m = " << refine_above_m << ", expected >= 0; ";
@@ -430,16 +595,23 @@ struct Odometry::Impl {
   TimedPoints first_cloud;  ///< the first tilt's centroids, until a velocity is known to de-skew them
   bool have_first = false;
   TimedPoints anchor;  ///< the first tilt's centroids, until reanchor_first_cloud
+  std::vector<StartUpCloud> start_up;  ///< the first clouds' centroids, until smooth_start_up
 
   /// Rebuilds the target from `recent`: concatenation, no new covariances; the search
   /// tree is rebuilt once, here or on the next alignment.
-  void rebuild_target(IcpBackend backend) {
+  void rebuild_target(IcpBackend backend, double merge_m) {
     const bool generalized = backend != IcpBackend::kPointToPoint;
     map = std::make_shared<XyzCloud>();
     auto covariances = std::make_shared<Covariances>();
     for (const auto& c : recent) {
       *map += *c.points_world;
       if (generalized) covariances->insert(covariances->end(), c.covariances_world->begin(), c.covariances_world->end());
+    }
+    // Merged: one point per voxel over all the clouds and covariances from neighbours
+    // across them (see RegistrationOptions::merged_local_map_m).
+    if (merge_m > 0.0 && generalized && recent.size() >= 2) {
+      map = downsample(*map, merge_m);
+      covariances = gicp.covariances_of(map);
     }
     if (backend == IcpBackend::kRobust) {
       map_tree.setInputCloud(map);
@@ -524,6 +696,10 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     source = deskew_points(centroids, motion_per_s);
   }
   std::shared_ptr<Covariances> source_covariances;
+  const bool smooth_start = !with_prior && generalized && options_.start_up_clouds > 0;
+  if (smooth_start && static_cast<int>(poses.size()) < options_.start_up_clouds) {
+    m.start_up.push_back({poses.empty() ? 0.0 : cloud_time_s - poses.front().time_s, centroids});
+  }
 
   Step step;
   step.T_world_lidar = predicted;
@@ -618,13 +794,55 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   }
   while (static_cast<int>(m.recent.size()) > options_.local_map_clouds) m.recent.pop_front();
 
-  if (poses.size() >= 2 || with_prior) m.rebuild_target(options_.backend);
+  if (poses.size() >= 2 || with_prior) m.rebuild_target(options_.backend, options_.merged_local_map_m);
+  if (smooth_start && static_cast<int>(poses.size()) == options_.start_up_clouds) smooth_start_up();
   if (!with_prior && options_.reanchor_first_cloud && !m.anchor.points.empty() &&
       static_cast<int>(poses.size()) == std::max(options_.local_map_clouds, 3) + 1) {
     reanchor_first_cloud();
   }
   step.registration.time_ms = ms_since(start);
   return step;
+}
+
+void Odometry::smooth_start_up() {
+  Impl& m = *impl_;
+  const std::vector<StartUpCloud> clouds = std::move(m.start_up);
+  m.start_up = {};
+  const auto& poses = trajectory_.poses();
+  const Eigen::Isometry3d T_world_first = poses.front().T_world_lidar;
+  std::vector<std::pair<double, Eigen::Isometry3d>> samples;
+  for (std::size_t k = 0; k < clouds.size(); ++k) {
+    samples.emplace_back(clouds[k].tau_s, T_world_first.inverse() * poses[k].T_world_lidar);
+  }
+  const auto start = Clock::now();
+  const StartUpResult r = solve_start_up(clouds, fit_start_up(samples), m.gicp, options_);
+  start_up_.time_ms = ms_since(start);
+  start_up_.attempted = true;
+  start_up_.converged = r.converged;
+  start_up_.iterations = r.iterations;
+  if (!r.converged) return;
+  std::vector<TimedPose> moved = poses;
+  double largest_move_m = 0.0;
+  for (std::size_t k = 0; k < clouds.size(); ++k) {
+    moved[k].T_world_lidar = T_world_first * core::from_vector6(start_up_vector(r.coefficients, clouds[k].tau_s));
+    largest_move_m = std::max(largest_move_m, core::translation_error_m(moved[k].T_world_lidar, poses[k].T_world_lidar));
+  }
+  // A change beyond the correspondence gate is not a refinement: keep the poses.
+  if (largest_move_m > options_.max_correspondence_m) return;
+  start_up_.applied = true;
+  trajectory_ = Trajectory(std::move(moved));
+  // The clouds of the local map along the curve (the newest clouds are the start-up's).
+  const std::size_t in_map = std::min(clouds.size(), m.recent.size());
+  for (std::size_t i = clouds.size() - in_map; i < clouds.size(); ++i) {
+    auto& entry = m.recent[m.recent.size() - clouds.size() + i];
+    auto points = std::make_shared<XyzCloud>();
+    pcl::transformPointCloud(*r.world[i], *points, T_world_first.matrix().cast<float>());
+    entry.points_world = points;
+    entry.covariances_world = m.gicp.covariances_of(points);
+    entry.sensor = {};
+  }
+  m.anchor = {};  // the curve replaces the re-anchoring
+  m.rebuild_target(options_.backend, options_.merged_local_map_m);
 }
 
 void Odometry::reanchor_first_cloud() {
@@ -650,7 +868,7 @@ void Odometry::reanchor_first_cloud() {
     c.points_world = points;
     c.sensor = {};
   }
-  m.rebuild_target(options_.backend);
+  m.rebuild_target(options_.backend, options_.merged_local_map_m);
   const Eigen::Isometry3d& before = poses.front().T_world_lidar;
   RegistrationResult r;
   if (options_.backend == IcpBackend::kRobust) {
@@ -686,7 +904,7 @@ void Odometry::reanchor_first_cloud() {
       c.covariances_world = covariances;
     }
   }
-  m.rebuild_target(options_.backend);
+  m.rebuild_target(options_.backend, options_.merged_local_map_m);
 }
 
 }  // namespace rgbdt::rgbdt_map
