@@ -257,6 +257,7 @@ int main(int argc, char** argv) {
   double resolution_m = 0.05;
   int max_clouds = 0;
   std::string motion_prior;
+  bool accurate = false;
   app.add_option("session", session_path, "mapping session folder (or its session.yaml)")->required();
   app.add_option("--calib", calib_dir, "calibration folder with extrinsics_<camera>.yaml (e.g. SESSION/true_calib)")
       ->required();
@@ -267,6 +268,11 @@ int main(int argc, char** argv) {
                  "(PCL's point-to-point)")
       ->check(CLI::IsMember({"rgicp", "gicp", "icp"}));
   app.add_option("--max-clouds", max_clouds, "map only the first N clouds (0: all)");
+  app.add_flag("--accurate", accurate,
+               "LIDAR only: solve the first 4 tilts' motion as one smooth curve, and merge the local map with "
+               "covariances computed anew on every tilt (rgicp and gicp). On 14 simulated 100 m streets the "
+               "trajectory error anchored at the first pose fell from 7.7 to 5.6 cm on average; registration "
+               "takes ~35 ms more per tilt");
   app.add_option("--motion-prior", motion_prior,
                  "CSV time_s,x,y,z,qx,qy,qz,qw of the LIDAR's motion from another sensor (IMU or wheel "
                  "odometry moved to the LIDAR frame; any fixed frame, any drift): de-skews each tilt and seeds "
@@ -341,6 +347,10 @@ int main(int argc, char** argv) {
     // Stage 1: registration.
     RegistrationOptions reg_options;
     reg_options.backend = icp_backend_from_string(backend);
+    if (accurate) {
+      reg_options.start_up_clouds = 4;
+      reg_options.merged_local_map_m = 0.25;
+    }
     Odometry odometry(reg_options);
     if (!motion_prior.empty()) {
       Trajectory prior = read_trajectory_csv(motion_prior);
@@ -393,6 +403,14 @@ int main(int argc, char** argv) {
                   reanchoring.applied ? "applied"
                                       : "NOT applied (did not converge or beyond the correspondence gate); the "
                                         "start-up poses are kept");
+    }
+    const Odometry::StartUp& start_up = odometry.start_up();
+    if (start_up.attempted) {
+      std::printf("rgbdt_mapper: the first %d tilts solved again as one smooth motion (%d steps, %.0f ms): %s\n",
+                  reg_options.start_up_clouds, start_up.iterations, start_up.time_ms,
+                  start_up.applied ? "applied"
+                                   : "NOT applied (did not converge or beyond the correspondence gate); the "
+                                     "poses registered one by one are kept");
     }
     const Trajectory& trajectory = odometry.trajectory();
     write_trajectory_csv((fs::path(out_dir) / "trajectory.csv").string(), trajectory);
@@ -507,6 +525,8 @@ int main(int argc, char** argv) {
          << ",\n  \"voxels\": " << map.size() << ",\n  \"resolution_m\": " << json_number(resolution_m)
          << ",\n  \"icp_backend\": \"" << backend << "\",\n  \"registrations_not_converged\": " << not_converged
          << ",\n  \"first_tilt_reanchored\": " << (odometry.reanchoring().applied ? "true" : "false")
+         << ",\n  \"smooth_start_up\": " << (odometry.start_up().applied ? "true" : "false")
+         << ",\n  \"merged_local_map_m\": " << reg_options.merged_local_map_m
          << ",\n  \"icp_mean_ms\": "
          << json_number(icp_ms / std::max<std::size_t>(1, clouds.size() - 1));
     double rgb_fraction = NAN;

@@ -272,6 +272,24 @@ TEST(MapperApp, MapsARawSimulatedStreetSessionThroughTheAssembler) {
   EXPECT_LT(json_value(json.substr(thermal_at), "mean"), 0.5) << json;
   EXPECT_GT(json_value(json.substr(thermal_at), "points"), 10000) << json;
   RecordProperty("summary", json);
+
+  // --accurate: the first 4 tilts solved as one smooth motion instead of the re-anchoring,
+  // and the merged local map; the summary says so.
+  const std::string accurate = std::string(bin) + "/rgbdt_mapper " + (dir / "session").string() + " --calib " +
+                               (dir / "session/true_calib").string() + " --out " + (dir / "out_accurate").string() +
+                               " --resolution 0.1 --max-clouds 6 --accurate > " +
+                               (dir / "log_accurate.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(accurate.c_str()), 0) << "see " << (dir / "log_accurate.txt");
+  std::ifstream in_accurate(dir / "out_accurate/summary.json");
+  const std::string json_accurate((std::istreambuf_iterator<char>(in_accurate)), {});
+  EXPECT_NE(json_accurate.find("\"smooth_start_up\": true"), std::string::npos) << json_accurate;
+  EXPECT_NE(json_accurate.find("\"first_tilt_reanchored\": false"), std::string::npos) << json_accurate;
+  EXPECT_DOUBLE_EQ(json_value(json_accurate, "merged_local_map_m"), 0.25) << json_accurate;
+  EXPECT_LT(json_value(json_accurate, "trajectory_rmse_m"), 0.05) << json_accurate;
+  std::ifstream log_accurate(dir / "log_accurate.txt");
+  const std::string text_accurate((std::istreambuf_iterator<char>(log_accurate)), {});
+  EXPECT_NE(text_accurate.find("the first 4 tilts solved again as one smooth motion"), std::string::npos)
+      << text_accurate;
 }
 
 TEST(MapperApp, FailsWithAClearMessageOnAMissingCalibration) {

@@ -87,7 +87,7 @@ struct RegistrationOptions {
   /// rate of 0.3-0.6 s before it, so each start pose is off in attitude, and the first
   /// pose's error turns the whole trajectory. With 4 clouds the first poses' attitude
   /// relative to the first came out 0.013-0.063 deg off on 4 sim streets, against
-  /// 0.11-0.43 deg without. Costs one solve of ~100 ms, once. On its own it leaves the
+  /// 0.11-0.43 deg without. Costs one solve, once: 0.15-0.36 s on 14 streets. On its own it leaves the
   /// anchored error as it was (14 streets: 0.075 against 0.077 m); with
   /// merged_local_map_m it lowers it (below).
   int start_up_clouds = 0;
