@@ -87,8 +87,8 @@ struct RegistrationOptions {
   /// rate of 0.3-0.6 s before it, so each start pose is off in attitude, and the first
   /// pose's error turns the whole trajectory. With 4 clouds the first poses' attitude
   /// relative to the first came out 0.013-0.063 deg off on 4 sim streets, against
-  /// 0.11-0.43 deg without. Costs one solve, once: 0.15-0.36 s on 14 streets. On its own it leaves the
-  /// anchored error as it was (14 streets: 0.075 against 0.077 m); with
+  /// 0.11-0.43 deg without. One solve, once: 0.15-0.36 s on 14 streets. On its own it
+  /// leaves the anchored error as it was (14 streets: 0.075 against 0.077 m); with
   /// merged_local_map_m it lowers it (below).
   int start_up_clouds = 0;
   /// 0: the local map is the concatenation of its clouds, each with the covariances it
@@ -96,10 +96,11 @@ struct RegistrationOptions {
   /// [m] and the GICP covariances computed anew from the merged points on every tilt, so
   /// that each comes from neighbours across clouds. Measured on 14 LIDAR-only 100 m sim
   /// streets (rgbdt_map_drift --seeds 14), mean anchored RMSE: 0.077 m concatenated,
-  /// 0.069 m merged at 0.25 m, 0.056 m merged with start_up_clouds = 4; each tilt costs
-  /// ~35 ms more on one core (covariances of ~15k points), over the real-time budget of
-  /// rgbdt_map_bench. Merging without new covariances (the clouds' own, averaged per
-  /// voxel) gave 0.074 m; merging every 2nd or 3rd tilt only, 0.079 / 0.060 m (7 streets).
+  /// 0.069 m merged at 0.25 m, 0.056 m merged with start_up_clouds = 4. The covariances
+  /// of the ~15k merged points cost 30-40 ms per tilt on one core (rgbdt_map_bench prints
+  /// the whole tilt), over the real-time budget: off by default. Tried on 7 streets:
+  /// merging without new covariances (the clouds' own, averaged per voxel) 0.074 m;
+  /// merging every 2nd or 3rd tilt only, 0.079 / 0.060 m.
   double merged_local_map_m = 0.0;
   double min_range_m = 0.5;          ///< points nearer (the cart itself) are ignored [m]
   double max_range_m = 40.0;         ///< farther points are ignored [m]
