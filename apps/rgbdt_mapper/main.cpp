@@ -269,10 +269,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"rgicp", "gicp", "icp"}));
   app.add_option("--max-clouds", max_clouds, "map only the first N clouds (0: all)");
   app.add_flag("--accurate", accurate,
-               "LIDAR only: solve the first 4 tilts' motion as one smooth curve, and merge the local map with "
-               "covariances computed anew on every tilt (rgicp and gicp). On 14 simulated 100 m streets the "
-               "trajectory error anchored at the first pose fell from 7.7 to 5.6 cm on average; registration "
-               "takes ~35 ms more per tilt");
+               "LIDAR only (rgicp, gicp): solve the first 4 tilts' motion as one smooth curve, then after every "
+               "tilt the last 3 tilts' motion as one smooth curve against the older ones, on a local map merged "
+               "with covariances computed anew. On 14 simulated 100 m streets the trajectory error anchored at "
+               "the first pose fell from 7.7 to 3.8 cm on average (aligned: 1.8 to 1.0 cm); registration takes "
+               "~0.3 s per 0.6 s tilt instead of ~40 ms");
   app.add_option("--motion-prior", motion_prior,
                  "CSV time_s,x,y,z,qx,qy,qz,qw of the LIDAR's motion from another sensor (IMU or wheel "
                  "odometry moved to the LIDAR frame; any fixed frame, any drift): de-skews each tilt and seeds "
@@ -350,6 +351,7 @@ int main(int argc, char** argv) {
     if (accurate) {
       reg_options.start_up_clouds = 4;
       reg_options.merged_local_map_m = 0.25;
+      reg_options.window_clouds = 3;
     }
     Odometry odometry(reg_options);
     if (!motion_prior.empty()) {
@@ -411,6 +413,12 @@ int main(int argc, char** argv) {
                   start_up.applied ? "applied"
                                    : "NOT applied (did not converge or beyond the correspondence gate); the "
                                      "poses registered one by one are kept");
+    }
+    const Odometry::Window& window = odometry.window();
+    if (window.solves > 0) {
+      std::printf("rgbdt_mapper: %d windows of %d tilts solved again as smooth motions (%.1f s); %d did not "
+                  "converge and kept their poses\n",
+                  window.solves, reg_options.window_clouds, window.time_ms / 1000.0, window.not_converged);
     }
     const Trajectory& trajectory = odometry.trajectory();
     write_trajectory_csv((fs::path(out_dir) / "trajectory.csv").string(), trajectory);
@@ -527,6 +535,7 @@ int main(int argc, char** argv) {
          << ",\n  \"first_tilt_reanchored\": " << (odometry.reanchoring().applied ? "true" : "false")
          << ",\n  \"smooth_start_up\": " << (odometry.start_up().applied ? "true" : "false")
          << ",\n  \"merged_local_map_m\": " << reg_options.merged_local_map_m
+         << ",\n  \"window_solves\": " << odometry.window().solves
          << ",\n  \"icp_mean_ms\": "
          << json_number(icp_ms / std::max<std::size_t>(1, clouds.size() - 1));
     double rgb_fraction = NAN;

@@ -263,18 +263,18 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
   return result;
 }
 
+/// A stretch of the trajectory as one smooth curve: T_world_lidar(tau) =
+/// base * from_vector6(c0 + c1 tau + c2 tau^2 + c3 tau^3), tau from the first cloud's start.
+/// A cubic fits the sim street's first 3 s to 0.013 deg and 0.5 mm (a quadratic to 0.1
+/// deg). The start-up pins c0 = 0 (its base is the first pose, where the map starts); a
+/// window of later clouds leaves it free.
+using CurveCoefficients = Eigen::Matrix<double, 24, 1>;
 
-/// The start-up's motion: the first clouds' trajectory as one smooth curve from the first
-/// cloud's start, T_world_lidar(tau) = from_vector6(c1 tau + c2 tau^2 + c3 tau^3), so that
-/// T(0) = I is the world. Three 6-vectors: a cubic fits the sim street's first 3 s to
-/// 0.013 deg and 0.5 mm, a quadratic to 0.1 deg.
-using StartUpCoefficients = Eigen::Matrix<double, 18, 1>;
-
-core::Vector6d start_up_vector(const StartUpCoefficients& c, double tau_s) {
-  return tau_s * (c.segment<6>(0) + tau_s * (c.segment<6>(6) + tau_s * c.segment<6>(12)));
+core::Vector6d curve_vector(const CurveCoefficients& c, double tau_s) {
+  return c.segment<6>(0) + tau_s * (c.segment<6>(6) + tau_s * (c.segment<6>(12) + tau_s * c.segment<6>(18)));
 }
 
-struct StartUpCloud {
+struct CurveCloud {
   double tau_s = 0.0;  ///< the cloud's start after the first cloud's
   TimedPoints sensor;
 };
@@ -303,53 +303,65 @@ Eigen::Matrix<double, 3, 6> point_jacobian(const Eigen::Vector3d& w, const Eigen
   return J;
 }
 
-/// Fits the coefficients to poses (tau_s, T_world_lidar) by least squares on from_vector6's
-/// parameters (the first pose is the world: tau 0, identity).
-StartUpCoefficients fit_start_up(const std::vector<std::pair<double, Eigen::Isometry3d>>& poses) {
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(poses.size()) * 6, 18);
+/// The coefficients through poses (tau_s, base^-1 T_world_lidar) by least squares on
+/// from_vector6's parameters; c0 = 0 unless free_offset.
+CurveCoefficients fit_curve(const std::vector<std::pair<double, Eigen::Isometry3d>>& poses, bool free_offset) {
+  const int first = free_offset ? 0 : 1;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(poses.size()) * 6, (4 - first) * 6);
   Eigen::VectorXd b(static_cast<Eigen::Index>(poses.size()) * 6);
   for (std::size_t k = 0; k < poses.size(); ++k) {
-    const double tau = poses[k].first;
     const auto row = static_cast<Eigen::Index>(k) * 6;
-    for (int power = 0; power < 3; ++power) {
-      A.block<6, 6>(row, power * 6) = std::pow(tau, power + 1) * Eigen::Matrix<double, 6, 6>::Identity();
+    for (int power = first; power < 4; ++power) {
+      A.block<6, 6>(row, (power - first) * 6) = std::pow(poses[k].first, power) * Eigen::Matrix<double, 6, 6>::Identity();
     }
     b.segment<6>(row) = core::to_vector6(poses[k].second);
   }
-  return A.colPivHouseholderQr().solve(b);
+  CurveCoefficients c = CurveCoefficients::Zero();
+  c.tail((4 - first) * 6) = A.colPivHouseholderQr().solve(b);
+  return c;
 }
 
-/// Every cloud of the start-up registered against all the others at once, their points
-/// placed along one smooth trajectory (StartUpCoefficients): Gauss-Newton on GICP's cost
-/// with the Cauchy loss of robust_gicp, each correspondence's two ends moving with the
-/// trajectory, the correspondences renewed every step. The chord between two start poses
-/// gives a tilt the rotation rate of 0.3-0.6 s before it; the curve gives each point the
-/// pose at its own time. Covariances: those of each cloud as placed by the initial guess,
-/// in the world (the curve moves it by less than a voxel).
-struct StartUpResult {
-  StartUpCoefficients coefficients = StartUpCoefficients::Zero();
+/// Older clouds the curve's clouds are registered against as well, held fixed.
+struct FixedMap {
+  const XyzCloud& points;
+  const Covariances& covariances;
+  const MapTree& tree;
+};
+
+struct CurveResult {
+  CurveCoefficients coefficients = CurveCoefficients::Zero();
   bool converged = false;
   int iterations = 0;
   std::vector<XyzCloud::Ptr> world;  ///< each cloud's points along the solved curve
 };
 
-StartUpResult solve_start_up(const std::vector<StartUpCloud>& clouds, const StartUpCoefficients& guess,
-                             CovarianceGicp& gicp, const RegistrationOptions& options) {
-  StartUpResult result;
+/// Every cloud on the curve registered against all the others at once (and against
+/// `fixed`, when given), each point placed at the curve's pose at its own time:
+/// Gauss-Newton on GICP's cost with the Cauchy loss of robust_gicp, each correspondence
+/// between two of the curve's clouds moving at both ends, the correspondences renewed
+/// every step. The chord between two start poses gives a tilt the rotation rate of
+/// 0.3-0.6 s before it; the curve gives each point the pose at its own time. Covariances:
+/// those of each cloud as placed by the guess, in the world (the solve moves it by less
+/// than a voxel). Converged when a step moves no pose of the span by more than the
+/// epsilons (the correspondences then cycle between sets ~0.04 mm apart).
+CurveResult solve_curve(const std::vector<CurveCloud>& clouds, const Eigen::Isometry3d& base,
+                        const CurveCoefficients& guess, bool free_offset, const FixedMap* fixed,
+                        CovarianceGicp& gicp, const RegistrationOptions& options) {
+  CurveResult result;
   result.coefficients = guess;
-
   const std::size_t n = clouds.size();
   const double gate2 = options.max_correspondence_m * options.max_correspondence_m;
   double tau_max = 0.0;
   for (const auto& c : clouds) {
     for (float t : c.sensor.t_s) tau_max = std::max(tau_max, c.tau_s + t);
   }
-  auto place = [&](const StartUpCoefficients& c) {
+  auto place = [&](const CurveCoefficients& c) {
     std::vector<XyzCloud::Ptr> world(n);
     for (std::size_t i = 0; i < n; ++i) {
       const double tau0 = clouds[i].tau_s;
-      world[i] = deskew_points(clouds[i].sensor,
-                               [&c, tau0](double t) { return core::from_vector6(start_up_vector(c, tau0 + t)); });
+      world[i] = deskew_points(clouds[i].sensor, [&c, &base, tau0](double t) {
+        return Eigen::Isometry3d(base * core::from_vector6(curve_vector(c, tau0 + t)));
+      });
     }
     return world;
   };
@@ -358,27 +370,34 @@ StartUpResult solve_start_up(const std::vector<StartUpCloud>& clouds, const Star
     const auto world = place(guess);
     for (std::size_t i = 0; i < n; ++i) covariances[i] = gicp.covariances_of(world[i]);
   }
+  const Eigen::Matrix3d R_base = base.linear();
   std::vector<int> index(1);
   std::vector<float> distance2(1);
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
-    const StartUpCoefficients c = result.coefficients;
+    const CurveCoefficients c = result.coefficients;
     const auto world = place(c);
-    Eigen::Matrix<double, 18, 18> H = Eigen::Matrix<double, 18, 18>::Zero();
-    Eigen::Matrix<double, 18, 1> g = Eigen::Matrix<double, 18, 1>::Zero();
+    Eigen::Matrix<double, 24, 24> H = Eigen::Matrix<double, 24, 24>::Zero();
+    Eigen::Matrix<double, 24, 1> g = Eigen::Matrix<double, 24, 1>::Zero();
     // d(point)/d(coefficients) for point p of cloud i.
-    auto jacobian = [&](std::size_t i, std::size_t p) -> Eigen::Matrix<double, 3, 18> {
+    auto jacobian = [&](std::size_t i, std::size_t p) -> Eigen::Matrix<double, 3, 24> {
       const double tau = clouds[i].tau_s + clouds[i].sensor.t_s[p];
-      const core::Vector6d v = start_up_vector(c, tau);
+      const core::Vector6d v = curve_vector(c, tau);
       const Eigen::Vector3d w = v.head<3>();
       const Eigen::Vector3d Rx = core::rotation_from_vector(w) * clouds[i].sensor.points[p].cast<double>();
-      const Eigen::Matrix<double, 3, 6> J6 = point_jacobian(w, Rx);
-      Eigen::Matrix<double, 3, 18> J;
-      J << tau * J6, tau * tau * J6, tau * tau * tau * J6;
+      const Eigen::Matrix<double, 3, 6> J6 = R_base * point_jacobian(w, Rx);
+      Eigen::Matrix<double, 3, 24> J;
+      J << J6, tau * J6, tau * tau * J6, tau * tau * tau * J6;
       return J;
+    };
+    auto accumulate = [&](const Eigen::Matrix<double, 3, 24>& J, const Eigen::Matrix3d& M, const Eigen::Vector3d& r) {
+      const double weight = 1.0 / (1.0 + r.dot(M * r) / options.robust_scale2);
+      const Eigen::Matrix<double, 24, 3> JtM = J.transpose() * M;
+      H.noalias() += weight * JtM * J;
+      g.noalias() += weight * JtM * r;
     };
     std::size_t inliers = 0;
     for (std::size_t i = 0; i < n; ++i) {
-      // The other clouds, with each point's owner.
+      // The other clouds on the curve, with each point's owner.
       auto others = std::make_shared<XyzCloud>();
       std::vector<std::pair<std::size_t, std::size_t>> owner;
       for (std::size_t j = 0; j < n; ++j) {
@@ -390,26 +409,35 @@ StartUpResult solve_start_up(const std::vector<StartUpCloud>& clouds, const Star
       tree.setInputCloud(others);
       for (std::size_t p = 0; p < world[i]->size(); ++p) {
         const pcl::PointXYZ& query = (*world[i])[p];
-        if (tree.nearestKSearch(query, 1, index, distance2) < 1 || distance2[0] > gate2) continue;
-        const auto [j, q] = owner[static_cast<std::size_t>(index[0])];
-        const Eigen::Matrix3d M = ((*covariances[i])[p] + (*covariances[j])[q]).inverse();
-        const Eigen::Vector3d r = (query.getVector3fMap() - (*world[j])[q].getVector3fMap()).cast<double>();
-        const double weight = 1.0 / (1.0 + r.dot(M * r) / options.robust_scale2);
-        const Eigen::Matrix<double, 3, 18> J = jacobian(i, p) - jacobian(j, q);
-        const Eigen::Matrix<double, 18, 3> JtM = J.transpose() * M;
-        H.noalias() += weight * JtM * J;
-        g.noalias() += weight * JtM * r;
-        ++inliers;
+        const Eigen::Matrix<double, 3, 24> J = jacobian(i, p);
+        if (tree.nearestKSearch(query, 1, index, distance2) >= 1 && distance2[0] <= gate2) {
+          const auto [j, q] = owner[static_cast<std::size_t>(index[0])];
+          const Eigen::Matrix3d M = ((*covariances[i])[p] + (*covariances[j])[q]).inverse();
+          accumulate(J - jacobian(j, q), M, (query.getVector3fMap() - (*world[j])[q].getVector3fMap()).cast<double>());
+          ++inliers;
+        }
+        if (fixed && fixed->tree.nearestKSearch(query, 1, index, distance2) >= 1 && distance2[0] <= gate2) {
+          const auto q = static_cast<std::size_t>(index[0]);
+          const Eigen::Matrix3d M = ((*covariances[i])[p] + fixed->covariances[q]).inverse();
+          accumulate(J, M, (query.getVector3fMap() - fixed->points[q].getVector3fMap()).cast<double>());
+          ++inliers;
+        }
       }
     }
-    if (inliers < 18) break;
-    const StartUpCoefficients delta = -H.ldlt().solve(g);
+    if (inliers < 24) break;
+    if (!free_offset) {  // c0 stays 0: solve for the other coefficients only
+      H.topRows<6>().setZero();
+      H.leftCols<6>().setZero();
+      H.topLeftCorner<6, 6>().setIdentity();
+      g.head<6>().setZero();
+    }
+    const CurveCoefficients delta = -H.ldlt().solve(g);
     result.coefficients += delta;
     result.iterations = iteration + 1;
-    // The step's largest effect on a pose over the start-up's span.
+    // The step's largest effect on a pose over the span.
     double step_m = 0.0, step_rad = 0.0;
-    for (int k = 1; k <= 10; ++k) {
-      const core::Vector6d d = start_up_vector(delta, tau_max * k / 10.0);
+    for (int k = 0; k <= 10; ++k) {
+      const core::Vector6d d = curve_vector(delta, tau_max * k / 10.0);
       step_rad = std::max(step_rad, d.head<3>().norm());
       step_m = std::max(step_m, d.tail<3>().norm());
     }
@@ -448,6 +476,13 @@ std::string RegistrationOptions::validate() const {
   if (!(translation_epsilon_m > 0.0)) os << "translation_epsilon_m = " << translation_epsilon_m << ", expected > 0; ";
   if (!(rotation_epsilon_rad > 0.0)) os << "rotation_epsilon_rad = " << rotation_epsilon_rad << ", expected > 0; ";
   if (!(robust_scale2 > 0.0)) os << "robust_scale2 = " << robust_scale2 << ", expected > 0; ";
+  if (window_clouds != 0 && (window_clouds < 2 || window_clouds >= local_map_clouds)) {
+    os << "window_clouds = " << window_clouds << ", expected 0 (off) or 2 to local_map_clouds - 1 = "
+       << local_map_clouds - 1 << "; ";
+  }
+  if (window_clouds != 0 && window_start_clouds <= window_clouds) {
+    os << "window_start_clouds = " << window_start_clouds << ", expected > window_clouds = " << window_clouds << "; ";
+  }
   if (start_up_clouds != 0 && (start_up_clouds < 4 || start_up_clouds > 8)) {
     os << "start_up_clouds = " << start_up_clouds << ", expected 0 (off) or 4-8; ";
   }
@@ -584,6 +619,8 @@ struct Odometry::Impl {
     XyzCloud::Ptr points_world;
     std::shared_ptr<Covariances> covariances_world;  ///< null for point-to-point ICP
     TimedPoints sensor;  ///< the centroids in the sensor frame, while the first cloud awaits its re-anchoring
+    TimedPoints centroids;  ///< the centroids in the sensor frame, for RegistrationOptions::window_clouds
+    double start_s = 0.0;   ///< the cloud's time, with `centroids`
     double time_s = 0.0;
   };
   std::deque<MapCloud> recent;
@@ -595,7 +632,7 @@ struct Odometry::Impl {
   TimedPoints first_cloud;  ///< the first tilt's centroids, until a velocity is known to de-skew them
   bool have_first = false;
   TimedPoints anchor;  ///< the first tilt's centroids, until reanchor_first_cloud
-  std::vector<StartUpCloud> start_up;  ///< the first clouds' centroids, until smooth_start_up
+  std::vector<CurveCloud> start_up;  ///< the first clouds' centroids, until smooth_start_up
 
   /// Rebuilds the target from `recent`: concatenation, no new covariances; the search
   /// tree is rebuilt once, here or on the next alignment.
@@ -786,6 +823,10 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     entry.sensor = centroids;
     entry.time_s = cloud_time_s;
   }
+  if (options_.window_clouds > 0 && !with_prior && generalized) {
+    entry.centroids = centroids;
+    entry.start_s = cloud_time_s;
+  }
   m.recent.push_back(entry);
   if (poses.size() == 1 && !with_prior) {
     m.first_cloud = centroids;
@@ -796,6 +837,11 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
 
   if (poses.size() >= 2 || with_prior) m.rebuild_target(options_.backend, options_.merged_local_map_m);
   if (smooth_start && static_cast<int>(poses.size()) == options_.start_up_clouds) smooth_start_up();
+  if (options_.window_clouds > 0 && !with_prior && generalized &&
+      static_cast<int>(poses.size()) >= options_.window_start_clouds &&
+      static_cast<int>(m.recent.size()) > options_.window_clouds) {
+    refine_window();
+  }
   if (!with_prior && options_.reanchor_first_cloud && !m.anchor.points.empty() &&
       static_cast<int>(poses.size()) == std::max(options_.local_map_clouds, 3) + 1) {
     reanchor_first_cloud();
@@ -806,7 +852,7 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
 
 void Odometry::smooth_start_up() {
   Impl& m = *impl_;
-  const std::vector<StartUpCloud> clouds = std::move(m.start_up);
+  const std::vector<CurveCloud> clouds = std::move(m.start_up);
   m.start_up = {};
   const auto& poses = trajectory_.poses();
   const Eigen::Isometry3d T_world_first = poses.front().T_world_lidar;
@@ -815,7 +861,8 @@ void Odometry::smooth_start_up() {
     samples.emplace_back(clouds[k].tau_s, T_world_first.inverse() * poses[k].T_world_lidar);
   }
   const auto start = Clock::now();
-  const StartUpResult r = solve_start_up(clouds, fit_start_up(samples), m.gicp, options_);
+  const CurveResult r =
+      solve_curve(clouds, T_world_first, fit_curve(samples, false), false, nullptr, m.gicp, options_);
   start_up_.time_ms = ms_since(start);
   start_up_.attempted = true;
   start_up_.converged = r.converged;
@@ -824,7 +871,7 @@ void Odometry::smooth_start_up() {
   std::vector<TimedPose> moved = poses;
   double largest_move_m = 0.0;
   for (std::size_t k = 0; k < clouds.size(); ++k) {
-    moved[k].T_world_lidar = T_world_first * core::from_vector6(start_up_vector(r.coefficients, clouds[k].tau_s));
+    moved[k].T_world_lidar = T_world_first * core::from_vector6(curve_vector(r.coefficients, clouds[k].tau_s));
     largest_move_m = std::max(largest_move_m, core::translation_error_m(moved[k].T_world_lidar, poses[k].T_world_lidar));
   }
   // A change beyond the correspondence gate is not a refinement: keep the poses.
@@ -835,13 +882,59 @@ void Odometry::smooth_start_up() {
   const std::size_t in_map = std::min(clouds.size(), m.recent.size());
   for (std::size_t i = clouds.size() - in_map; i < clouds.size(); ++i) {
     auto& entry = m.recent[m.recent.size() - clouds.size() + i];
-    auto points = std::make_shared<XyzCloud>();
-    pcl::transformPointCloud(*r.world[i], *points, T_world_first.matrix().cast<float>());
-    entry.points_world = points;
-    entry.covariances_world = m.gicp.covariances_of(points);
+    entry.points_world = r.world[i];
+    entry.covariances_world = m.gicp.covariances_of(r.world[i]);
     entry.sensor = {};
   }
   m.anchor = {};  // the curve replaces the re-anchoring
+  m.rebuild_target(options_.backend, options_.merged_local_map_m);
+}
+
+void Odometry::refine_window() {
+  Impl& m = *impl_;
+  const auto start = Clock::now();
+  const auto w = static_cast<std::size_t>(options_.window_clouds);
+  const std::size_t first_entry = m.recent.size() - w;
+  const auto& poses = trajectory_.poses();
+  const std::size_t first_pose = poses.size() - w;
+  const Eigen::Isometry3d base = poses[first_pose].T_world_lidar;
+  std::vector<CurveCloud> clouds;
+  std::vector<std::pair<double, Eigen::Isometry3d>> samples;
+  for (std::size_t i = 0; i < w; ++i) {
+    const Impl::MapCloud& entry = m.recent[first_entry + i];
+    clouds.push_back({entry.start_s - m.recent[first_entry].start_s, entry.centroids});
+    samples.emplace_back(clouds.back().tau_s, base.inverse() * poses[first_pose + i].T_world_lidar);
+  }
+  // The older clouds of the local map, held fixed (merged as the local map is).
+  auto fixed_points = std::make_shared<XyzCloud>();
+  auto fixed_covariances = std::make_shared<Covariances>();
+  for (std::size_t i = 0; i < first_entry; ++i) {
+    *fixed_points += *m.recent[i].points_world;
+    fixed_covariances->insert(fixed_covariances->end(), m.recent[i].covariances_world->begin(),
+                              m.recent[i].covariances_world->end());
+  }
+  if (options_.merged_local_map_m > 0.0) {
+    fixed_points = downsample(*fixed_points, options_.merged_local_map_m);
+    if (static_cast<int>(fixed_points->size()) < options_.covariance_neighbours) return;  // nothing to hold on to
+    fixed_covariances = m.gicp.covariances_of(fixed_points);
+  }
+  MapTree fixed_tree;
+  fixed_tree.setInputCloud(fixed_points);
+  const FixedMap fixed{*fixed_points, *fixed_covariances, fixed_tree};
+  const CurveResult r = solve_curve(clouds, base, fit_curve(samples, true), true, &fixed, m.gicp, options_);
+  window_.time_ms += ms_since(start);
+  ++window_.solves;
+  if (!r.converged) {
+    ++window_.not_converged;
+    return;
+  }
+  std::vector<TimedPose> moved = poses;
+  for (std::size_t i = 0; i < w; ++i) {
+    moved[first_pose + i].T_world_lidar = base * core::from_vector6(curve_vector(r.coefficients, clouds[i].tau_s));
+    m.recent[first_entry + i].points_world = r.world[i];
+    m.recent[first_entry + i].covariances_world = m.gicp.covariances_of(r.world[i]);
+  }
+  trajectory_ = Trajectory(std::move(moved));
   m.rebuild_target(options_.backend, options_.merged_local_map_m);
 }
 

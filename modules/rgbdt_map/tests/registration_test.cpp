@@ -143,10 +143,12 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   RegistrationOptions kept_start;
   kept_start.reanchor_first_cloud = false;
   Odometry lidar_only_kept_start(kept_start);
-  // The accurate mode: a smooth start-up over 4 clouds and the merged local map.
+  // The accurate mode (rgbdt_mapper --accurate): a smooth start-up over 4 clouds, windows
+  // of 3 clouds on a smooth curve from the 13th cloud on, and the merged local map.
   RegistrationOptions accurate_options;
   accurate_options.start_up_clouds = 4;
   accurate_options.merged_local_map_m = 0.25;
+  accurate_options.window_clouds = 3;
   Odometry accurate(accurate_options);
   const std::vector<core::TimedFile> clouds = core::read_time_index((dir / "clouds" / "index.csv").string());
   ASSERT_GE(clouds.size(), 20u);
@@ -226,9 +228,14 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   const double first_accurate_deg = worst_first_attitude_deg(accurate.trajectory());
   const double first_default_deg = worst_first_attitude_deg(lidar_only.trajectory());
   const double rmse_accurate = trajectory_rmse_m(accurate.trajectory(), truth);
+  const double ate_accurate = trajectory_ate_m(accurate.trajectory(), truth);
   std::printf("poses 1-3 relative to the first, worst attitude error: start-up %.3f deg, chords %.3f deg; "
-              "anchored RMSE accurate mode %.4f m\n",
-              first_accurate_deg, first_default_deg, rmse_accurate);
+              "accurate mode: anchored %.4f m, aligned %.4f m; %d windows, %.0f ms\n",
+              first_accurate_deg, first_default_deg, rmse_accurate, ate_accurate, accurate.window().solves,
+              accurate.window().time_ms);
+  // One window per cloud from the 13th on, every one converged.
+  EXPECT_EQ(accurate.window().solves, static_cast<int>(clouds.size()) - 12);
+  EXPECT_EQ(accurate.window().not_converged, 0);
   RecordProperty("first_attitude_start_up_deg", std::to_string(first_accurate_deg));
   // Measured 0.063 against 0.158 deg (4 sim streets: 0.013-0.063 against 0.11-0.43 deg).
   // 0.1 deg is the attitude noise of one pose registered alone (rgbdt_map_drift's pitch
@@ -240,7 +247,7 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   EXPECT_LT(rmse_accurate, 0.03);
 }
 
-TEST(Odometry, RejectsBadStartUpAndMergeOptions) {
+TEST(Odometry, RejectsBadStartUpWindowAndMergeOptions) {
   RegistrationOptions options;
   options.start_up_clouds = 3;  // a cubic through 3 poses is not pinned
   EXPECT_NE(options.validate().find("start_up_clouds = 3"), std::string::npos) << options.validate();
@@ -249,6 +256,13 @@ TEST(Odometry, RejectsBadStartUpAndMergeOptions) {
   options.merged_local_map_m = -0.25;
   EXPECT_NE(options.validate().find("merged_local_map_m = -0.25"), std::string::npos) << options.validate();
   options.merged_local_map_m = 0.25;
+  EXPECT_EQ(options.validate(), "");
+  options.window_clouds = options.local_map_clouds;  // no older clouds left to hold the window
+  EXPECT_NE(options.validate().find("window_clouds = 8"), std::string::npos) << options.validate();
+  options.window_clouds = 3;
+  options.window_start_clouds = 3;
+  EXPECT_NE(options.validate().find("window_start_clouds = 3"), std::string::npos) << options.validate();
+  options.window_start_clouds = 13;
   EXPECT_EQ(options.validate(), "");
 }
 
