@@ -98,9 +98,9 @@ struct RegistrationOptions {
   /// streets (rgbdt_map_drift --seeds 14), mean anchored RMSE: 0.077 m concatenated,
   /// 0.069 m merged at 0.25 m, 0.056 m merged with start_up_clouds = 4. The covariances
   /// of the ~15k merged points cost 30-40 ms per tilt on one core (rgbdt_map_bench prints
-  /// the whole tilt), over the real-time budget: off by default. Tried on 7 streets:
-  /// merging without new covariances (the clouds' own, averaged per voxel) 0.074 m;
-  /// merging every 2nd or 3rd tilt only, 0.079 / 0.060 m.
+  /// the whole tilt), over the real-time budget: off by default. Tried: merging without
+  /// new covariances (the clouds' own, averaged per voxel) 0.074 m (14 streets); merging
+  /// every 2nd or 3rd tilt only, 0.079 / 0.060 m (7 streets).
   double merged_local_map_m = 0.0;
   /// LIDAR only, 0 (off) or 2 to local_map_clouds - 1: after each tilt, solve the newest
   /// this many clouds' trajectory again as one smooth curve (a cubic in time, its start
@@ -109,13 +109,12 @@ struct RegistrationOptions {
   /// Each tilt's rotation rate then comes from the tilts around it, not from the chord
   /// before it. Measured with start_up_clouds = 4 and merged_local_map_m = 0.25 on the 14
   /// streets: 3 clouds, mean anchored 0.038 m (RMS over the streets 0.043 m, 3 of 14 above
-  /// 0.05 m, worst 0.093 m), aligned 0.010 m, against 0.056 / 0.017 m without. It costs
+  /// 0.05 m, worst 0.094 m), aligned 0.010 m, against 0.056 / 0.017 m without. It costs
   /// ~0.25 s per tilt on one core: faster than the 0.6 s tilt, for offline mapping.
   int window_clouds = 0;
-  /// The first window is solved once this many clouds have come: a window whose fixed
-  /// part is only the first few clouds turned the trajectory against its first pose
-  /// (sim street seed 1: windows from the 5th cloud on, 0.069 m anchored; from the 13th,
-  /// 0.028 m).
+  /// The first window is solved once this many clouds have come. Windows from the 5th
+  /// cloud on (their fixed part then only the first few clouds) measured worse: sim
+  /// street seed 1, 0.069 m anchored against 0.028 m from the 13th.
   int window_start_clouds = 13;
   double min_range_m = 0.5;          ///< points nearer (the cart itself) are ignored [m]
   double max_range_m = 40.0;         ///< farther points are ignored [m]
