@@ -273,7 +273,7 @@ int main(int argc, char** argv) {
                "tilt the last 3 tilts' motion as one smooth curve against the older ones, on a local map merged "
                "with covariances computed anew. On 14 simulated 100 m streets the trajectory error anchored at "
                "the first pose fell from 7.7 to 3.8 cm on average (aligned: 1.8 to 1.0 cm); registration takes "
-               "~0.3 s per 0.6 s tilt instead of ~40 ms");
+               "0.25-0.5 s per 0.6 s tilt instead of ~40 ms");
   app.add_option("--motion-prior", motion_prior,
                  "CSV time_s,x,y,z,qx,qy,qz,qw of the LIDAR's motion from another sensor (IMU or wheel "
                  "odometry moved to the LIDAR frame; any fixed frame, any drift): de-skews each tilt and seeds "

@@ -214,6 +214,7 @@ int main(int argc, char** argv) {
       options.start_up_clouds = 4;
       options.merged_local_map_m = 0.25;
       options.window_clouds = 3;
+      options.window_start_clouds = 5;  // so that windows run within the bench's 6-12 tilts: their time is the point
     }
     std::vector<double> ms;
     std::vector<int> iterations;
@@ -312,7 +313,8 @@ int main(int argc, char** argv) {
   std::printf("   %-46s %9.1f ms  trajectory RMSE %.4f m, %d iterations\n", "register (Odometry::add), PCL ICP",
               icp.median_ms, icp.rmse_m, icp.median_iterations);
   std::printf("   %-46s %9.1f ms  target < 60 ms\n", "total: colour + our registration", color_ms + ours.median_ms);
-  std::printf("   %-46s %9.1f ms  trajectory RMSE %.4f m (median tilt; the start-up solve is once)\n",
+  std::printf("   %-46s %9.1f ms  trajectory RMSE %.4f m (windows from the 5th tilt, to time them; their "
+              "accuracy: rgbdt_map_drift)\n",
               "register, ours, --accurate (windows, merged map)", accurate.median_ms, accurate.rmse_m);
   std::printf("   engines alone on identical clouds (%d tilts vs. 3-tilt map, guess off by 8 cm / 0.8 deg):\n",
               sequence - 3);

@@ -835,13 +835,13 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   }
   while (static_cast<int>(m.recent.size()) > options_.local_map_clouds) m.recent.pop_front();
 
-  if (poses.size() >= 2 || with_prior) m.rebuild_target(options_.backend, options_.merged_local_map_m);
+  const bool window = options_.window_clouds > 0 && !with_prior && generalized &&
+                      static_cast<int>(poses.size()) >= options_.window_start_clouds &&
+                      static_cast<int>(m.recent.size()) > options_.window_clouds;
+  // The window rebuilds the target itself, from the clouds it moved.
+  if ((poses.size() >= 2 || with_prior) && !window) m.rebuild_target(options_.backend, options_.merged_local_map_m);
   if (smooth_start && static_cast<int>(poses.size()) == options_.start_up_clouds) smooth_start_up();
-  if (options_.window_clouds > 0 && !with_prior && generalized &&
-      static_cast<int>(poses.size()) >= options_.window_start_clouds &&
-      static_cast<int>(m.recent.size()) > options_.window_clouds) {
-    refine_window();
-  }
+  if (window) refine_window();
   if (!with_prior && options_.reanchor_first_cloud && !m.anchor.points.empty() &&
       static_cast<int>(poses.size()) == std::max(options_.local_map_clouds, 3) + 1) {
     reanchor_first_cloud();
@@ -915,7 +915,10 @@ void Odometry::refine_window() {
   }
   if (options_.merged_local_map_m > 0.0) {
     fixed_points = downsample(*fixed_points, options_.merged_local_map_m);
-    if (static_cast<int>(fixed_points->size()) < options_.covariance_neighbours) return;  // nothing to hold on to
+    if (static_cast<int>(fixed_points->size()) < options_.covariance_neighbours) {  // nothing to hold on to
+      m.rebuild_target(options_.backend, options_.merged_local_map_m);
+      return;
+    }
     fixed_covariances = m.gicp.covariances_of(fixed_points);
   }
   MapTree fixed_tree;
@@ -926,6 +929,7 @@ void Odometry::refine_window() {
   ++window_.solves;
   if (!r.converged) {
     ++window_.not_converged;
+    m.rebuild_target(options_.backend, options_.merged_local_map_m);
     return;
   }
   std::vector<TimedPose> moved = poses;

@@ -110,7 +110,8 @@ struct RegistrationOptions {
   /// before it. Measured with start_up_clouds = 4 and merged_local_map_m = 0.25 on the 14
   /// streets: 3 clouds, mean anchored 0.038 m (RMS over the streets 0.043 m, 3 of 14 above
   /// 0.05 m, worst 0.094 m), aligned 0.010 m, against 0.056 / 0.017 m without. It costs
-  /// ~0.25 s per tilt on one core: faster than the 0.6 s tilt, for offline mapping.
+  /// 0.25-0.5 s per tilt on one core (sim street ~0.27 s, rgbdt_map_bench's denser tilt
+  /// ~0.48 s): about real time, for offline mapping.
   int window_clouds = 0;
   /// The first window is solved once this many clouds have come. Windows from the 5th
   /// cloud on (their fixed part then only the first few clouds) measured worse: sim
