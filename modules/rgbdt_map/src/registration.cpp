@@ -682,7 +682,8 @@ std::size_t Odometry::memory_bytes() const {
   }
   if (impl_->map) bytes += impl_->map->size() * (sizeof(pcl::PointXYZ) + sizeof(Eigen::Matrix3d));
   std::size_t timed_points = impl_->first_cloud.points.size() + impl_->anchor.points.size();
-  for (const auto& c : impl_->recent) timed_points += c.sensor.points.size();
+  for (const auto& c : impl_->recent) timed_points += c.sensor.points.size() + c.centroids.points.size();
+  for (const auto& c : impl_->start_up) timed_points += c.sensor.points.size();
   bytes += timed_points * (sizeof(Eigen::Vector3f) + sizeof(float));
   return bytes;
 }
