@@ -409,17 +409,25 @@ CurveResult solve_curve(const std::vector<CurveCloud>& clouds, const Eigen::Isom
       tree.setInputCloud(others);
       for (std::size_t p = 0; p < world[i]->size(); ++p) {
         const pcl::PointXYZ& query = (*world[i])[p];
-        const Eigen::Matrix<double, 3, 24> J = jacobian(i, p);
+        // The point's Jacobian, computed only for a point that has a correspondence.
+        Eigen::Matrix<double, 3, 24> J;
+        bool have_jacobian = false;
+        auto point_j = [&]() -> const Eigen::Matrix<double, 3, 24>& {
+          if (!have_jacobian) J = jacobian(i, p);
+          have_jacobian = true;
+          return J;
+        };
         if (tree.nearestKSearch(query, 1, index, distance2) >= 1 && distance2[0] <= gate2) {
           const auto [j, q] = owner[static_cast<std::size_t>(index[0])];
           const Eigen::Matrix3d M = ((*covariances[i])[p] + (*covariances[j])[q]).inverse();
-          accumulate(J - jacobian(j, q), M, (query.getVector3fMap() - (*world[j])[q].getVector3fMap()).cast<double>());
+          accumulate(point_j() - jacobian(j, q), M,
+                     (query.getVector3fMap() - (*world[j])[q].getVector3fMap()).cast<double>());
           ++inliers;
         }
         if (fixed && fixed->tree.nearestKSearch(query, 1, index, distance2) >= 1 && distance2[0] <= gate2) {
           const auto q = static_cast<std::size_t>(index[0]);
           const Eigen::Matrix3d M = ((*covariances[i])[p] + fixed->covariances[q]).inverse();
-          accumulate(J, M, (query.getVector3fMap() - fixed->points[q].getVector3fMap()).cast<double>());
+          accumulate(point_j(), M, (query.getVector3fMap() - fixed->points[q].getVector3fMap()).cast<double>());
           ++inliers;
         }
       }
