@@ -305,4 +305,14 @@ TEST(MapperApp, FailsWithAClearMessageOnAMissingCalibration) {
   std::ifstream in(dir / "log.txt");
   const std::string log((std::istreambuf_iterator<char>(in)), {});
   EXPECT_NE(log.find("extrinsics_"), std::string::npos) << log;
+
+  // --accurate needs GICP's covariances: refused with point-to-point ICP, before any work.
+  const std::string icp = std::string(bin) + "/rgbdt_mapper " + (dir / "session").string() + " --calib " +
+                          (dir / "nowhere").string() + " --out " + (dir / "out_icp").string() +
+                          " --icp icp --accurate > " + (dir / "log_icp.txt").string() + " 2>&1";
+  EXPECT_NE(std::system(icp.c_str()), 0);
+  std::ifstream in_icp(dir / "log_icp.txt");
+  const std::string log_icp((std::istreambuf_iterator<char>(in_icp)), {});
+  EXPECT_NE(log_icp.find("--accurate needs GICP's covariances"), std::string::npos) << log_icp;
+  EXPECT_FALSE(fs::exists(dir / "out_icp"));
 }
