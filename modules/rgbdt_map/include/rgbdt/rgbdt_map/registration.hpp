@@ -102,17 +102,24 @@ struct RegistrationOptions {
   /// new covariances (the clouds' own, averaged per voxel) 0.074 m (14 streets); merging
   /// every 2nd or 3rd tilt only, 0.079 / 0.060 m (7 streets).
   double merged_local_map_m = 0.0;
-  /// LIDAR only, 0 (off) or 2 to local_map_clouds - 1: after each tilt, solve the newest
-  /// this many clouds' trajectory again as one smooth curve (a cubic in time, its start
-  /// free), every cloud registered against the others and against the older clouds of
-  /// the local map (held fixed), and replace their poses and local-map clouds with it.
-  /// Each tilt's rotation rate then comes from the tilts around it, not from the chord
-  /// before it. Measured with start_up_clouds = 4 and merged_local_map_m = 0.25 on the 14
-  /// streets: 3 clouds, mean anchored 0.038 m (RMS over the streets 0.043 m, 3 of 14 above
-  /// 0.05 m, worst 0.094 m), aligned 0.010 m, against 0.056 / 0.017 m without. It costs
-  /// 0.25-0.5 s per tilt on one core (sim street ~0.27 s, rgbdt_map_bench's denser tilt
-  /// ~0.48 s): about real time, for offline mapping.
+  /// LIDAR only, 0 (off) or 2 to local_map_clouds - 1: every window_interval_clouds tilts,
+  /// solve the newest this many clouds' trajectory again as one smooth curve (a cubic in
+  /// time, its start free), every cloud registered against the others and against the
+  /// older clouds of the local map (held fixed), and replace their poses and local-map
+  /// clouds with it. Each tilt's rotation rate then comes from the tilts around it, not from
+  /// the chord before it. Measured with start_up_clouds = 4 and merged_local_map_m = 0.25 on
+  /// the 14 streets, 3 clouds every 3rd tilt: mean anchored 0.036 m (RMS over the streets
+  /// 0.044 m, 5 of 14 above 0.05 m, worst 0.091 m), aligned 0.008 m, against 0.056 / 0.017 m
+  /// without. Without merged_local_map_m the windows make it worse (0.092 m). Time: see
+  /// rgbdt_map_bench's --accurate row.
   int window_clouds = 0;
+  /// A window every this many tilts (>= 1). The 14 streets, mean anchored / RMS / aligned:
+  /// every tilt 0.038 / 0.043 / 0.0105 m, every 2nd 0.037 / 0.044 / 0.0086 m, every 3rd
+  /// 0.036 / 0.044 / 0.0084 m: the error stays, the time goes to a third. With
+  /// merged_local_map_m the map is merged anew at each window only; between windows the
+  /// new clouds join the merged map with their own covariances (every 3rd: 0.0365 m merged
+  /// anew on every tilt, 0.0362 m so).
+  int window_interval_clouds = 3;
   /// The first window is solved once this many clouds have come. Windows from the 5th
   /// cloud on (their fixed part then only the first few clouds) measured worse: sim
   /// street seed 1, 0.069 m anchored against 0.028 m from the 13th.
@@ -222,10 +229,11 @@ class Odometry {
   };
   const StartUp& start_up() const { return start_up_; }
   /// What RegistrationOptions::window_clouds did: windows solved, of them not converged
-  /// (their poses kept as registered), and the time they took.
+  /// (their poses kept as registered), their steps, and the time they took.
   struct Window {
     int solves = 0;
     int not_converged = 0;
+    int iterations = 0;  ///< Gauss-Newton steps, all windows
     double time_ms = 0.0;
   };
   const Window& window() const { return window_; }
