@@ -1182,9 +1182,11 @@ void Odometry::refine_window() {
         r.coefficients, m.recent[first_entry + i].end_s - m.recent[first_entry].start_s));
     // Covariances: the newest cloud's anew, from where the curve puts its points (its
     // registration de-skewed it with a constant velocity: centimetres off at its far end);
-    // the others' were so computed when they were newest, and turn with their cloud.
-    // (Keeping the registration's for the newest too: mean aligned error 11.8 mm against
-    // 10.5 mm over the 14 sim streets of CONTRIBUTING.md.)
+    // the others' turn with their cloud. With a window after every tilt the others' were so
+    // computed when they were newest; keeping the registration's for the newest too then
+    // gave 11.8 against 10.5 mm mean aligned error on the 14 sim streets of CONTRIBUTING.md.
+    // (With a window every 3rd tilt and the merged map, no cloud enters a second window and
+    // the merged map computes its own: the newest's are then not used again.)
     if (i + 1 == w) {
       m.recent[first_entry + i].covariances_world = m.gicp.covariances_of(r.world[i]);
       continue;
