@@ -1185,9 +1185,11 @@ void Odometry::refine_window() {
     // the others' turn with their cloud. With a window after every tilt the others' were so
     // computed when they were newest; keeping the registration's for the newest too then
     // gave 11.8 against 10.5 mm mean aligned error on the 14 sim streets of CONTRIBUTING.md.
-    // (With a window every 3rd tilt and the merged map, no cloud enters a second window and
-    // the merged map computes its own: the newest's are then not used again.)
-    if (i + 1 == w) {
+    // With a window every 3rd tilt and the merged map, no cloud enters a second window and
+    // the merged map computes its own: the newest's would not be used again.
+    const bool used_again =
+        options_.window_interval_clouds < options_.window_clouds || options_.merged_local_map_m == 0.0;
+    if (i + 1 == w && used_again) {
       m.recent[first_entry + i].covariances_world = m.gicp.covariances_of(r.world[i]);
       continue;
     }
