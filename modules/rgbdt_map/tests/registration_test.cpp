@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <pcl/kdtree/kdtree_flann.h>
+
 #include <filesystem>
+#include <random>
 
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/time_index.hpp"
@@ -9,6 +12,7 @@
 #include "rgbdt/sim/mapping_session.hpp"
 #include "rgbdt/test/test_util.hpp"
 #include "synthetic_scene.hpp"
+#include "../src/nearest_kept.hpp"  // internal to the module
 
 using namespace rgbdt;
 using namespace rgbdt::rgbdt_map;
@@ -305,6 +309,91 @@ TEST(Odometry, RejectsBadStartUpWindowAndMergeOptions) {
   EXPECT_NE(options.validate().find("window_interval_clouds = 0"), std::string::npos) << options.validate();
   options.window_interval_clouds = 3;
   EXPECT_EQ(options.validate(), "");
+}
+
+namespace {
+
+struct KeptRun {
+  std::size_t calls = 0, searches = 0, wrong = 0;
+};
+
+// Queries near targets like 0.25 m voxel centroids of a ground and a wall, twice over 4 cm
+// apart (an appended map: near-duplicate runners-up), moved over kSteps steps, the targets
+// on odd steps (each its own way) and the queries on even ones (each along its own
+// heading) by up to move(step); each step every query asks
+// NearestKept and the answer is checked against all the targets.
+template <typename Move>
+KeptRun run_nearest_kept(Move&& move) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> jitter(-0.02f, 0.02f), unit(-1.0f, 1.0f);
+  auto targets = std::make_shared<XyzCloud>();
+  for (int a = 0; a < 40; ++a) {
+    for (int b = 0; b < 24; ++b) {
+      for (float offset : {0.0f, 0.04f}) {
+        targets->push_back(pcl::PointXYZ(0.25f * a + offset + jitter(rng), 0.25f * b + jitter(rng), jitter(rng)));
+        targets->push_back(pcl::PointXYZ(0.25f * a + offset + jitter(rng), 6.0f + jitter(rng), 0.25f * b + jitter(rng)));
+      }
+    }
+  }
+  std::vector<pcl::PointXYZ> queries;
+  for (int i = 0; i < 600; ++i) {
+    const auto& t = (*targets)[static_cast<std::size_t>(i) * 6 % targets->size()];
+    queries.emplace_back(t.x + 0.1f * unit(rng), t.y + 0.1f * unit(rng), t.z + 0.1f * unit(rng));
+  }
+  auto random_move = [&](float length) {
+    const Eigen::Vector3f v(unit(rng), unit(rng), unit(rng));
+    return Eigen::Vector3f(length * std::abs(unit(rng)) * v / std::max(v.norm(), 1e-6f));
+  };
+  std::vector<Eigen::Vector3f> heading;  // each query drifts one way, as points do in a solve
+  for (std::size_t i = 0; i < queries.size(); ++i) heading.push_back(random_move(1.0f).normalized());
+  std::vector<detail::NearestKept> kept(queries.size());
+  float targets_moved = 0.0f;  // the bound NearestKept is given: the sum of each step's largest move
+  KeptRun run;
+  constexpr int kSteps = 30;
+  for (int step = 0; step < kSteps; ++step) {
+    const float length = step == 0 ? 0.0f : move(step);
+    if (step % 2 == 1) {
+      for (auto& t : *targets) t.getVector3fMap() += random_move(length);
+      targets_moved += length;
+    } else {
+      for (std::size_t i = 0; i < queries.size(); ++i) queries[i].getVector3fMap() += length * heading[i];
+    }
+    pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+    tree.setInputCloud(targets);
+    for (std::size_t i = 0; i < queries.size(); ++i) {
+      const std::size_t got = kept[i].nearest(
+          queries[i], targets_moved,
+          [&](const pcl::PointXYZ& at, std::vector<int>& index, std::vector<float>& distance2, int k) {
+            ++run.searches;
+            return tree.nearestKSearch(at, k, index, distance2);
+          },
+          [&](std::size_t k) { return (*targets)[k].getVector3fMap(); });
+      ++run.calls;
+      float best = std::numeric_limits<float>::infinity();
+      for (const auto& t : *targets) best = std::min(best, (t.getVector3fMap() - queries[i].getVector3fMap()).norm());
+      if (got == detail::NearestKept::kNone ||
+          ((*targets)[got].getVector3fMap() - queries[i].getVector3fMap()).norm() > best + 1e-6f) {
+        ++run.wrong;
+      }
+    }
+  }
+  return run;
+}
+
+}  // namespace
+
+// NearestKept must answer as a fresh search of the targets as they are now would.
+TEST(NearestKept, AnswersAsAFreshSearchWouldWhilePointsMove) {
+  // Steps shrinking as a converging solve's: 4 cm, 1.4 cm, 8 mm, 5 mm ... 1 mm at the 12th.
+  const KeptRun solve = run_nearest_kept([](int step) { return 0.04f / std::pow(static_cast<float>(step), 1.5f); });
+  EXPECT_EQ(solve.wrong, 0u);
+  // Once per query on the first step, then only where a move may have brought another point
+  // nearer: the point of keeping.
+  EXPECT_LT(solve.searches, solve.calls / 4) << solve.searches << " searches in " << solve.calls << " calls";
+  // Steady 1.5 cm moves: candidates are overtaken and the bounds on both moves must tell
+  // (leaving out either move from the bound made answers here wrong).
+  const KeptRun steady = run_nearest_kept([](int) { return 0.015f; });
+  EXPECT_EQ(steady.wrong, 0u);
 }
 
 TEST(Trajectory, InterpolatesExtrapolatesAndRoundTripsThroughCsv) {

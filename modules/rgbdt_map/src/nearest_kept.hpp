@@ -1,0 +1,76 @@
+#pragma once
+/// \file
+/// NearestKept, for rgbdt_map's registration (registration.cpp) and its test: not installed.
+#include <pcl/point_types.h>
+
+#include <Eigen/Core>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <vector>
+
+namespace rgbdt::rgbdt_map::detail {
+
+/// A query's nearest neighbour among points that move a little between searches, found
+/// again without a search while that provably gives the same answer. A search keeps the
+/// kCandidates nearest, the farthest at distance dk. Later, with the query moved by m_q
+/// and every target by at most m_t since, any other point is at least dk - m_q - m_t
+/// away, and the candidates' own distances are measured anew: while the nearest candidate
+/// is nearer than that, it is the nearest of all. A Gauss-Newton step moves points by
+/// millimetres and neighbours are a voxel apart, so after the first step few points
+/// search. The correspondences are those a search every step finds (but for float
+/// rounding in a tie). Keeping only the runner-up (d1 + 2 (m_q + m_t) < d2) re-searched
+/// twice as often on the sim street: in a merged map the runner-up is often as near.
+struct NearestKept {
+  static constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  static constexpr int kCandidates = 4;
+  std::array<std::size_t, kCandidates> candidates{};
+  int count = 0;    ///< candidates found
+  float dk = 0.0f;  ///< the farthest candidate's distance when searched; infinite if fewer were found
+  Eigen::Vector3f at = Eigen::Vector3f::Zero();  ///< the query when searched
+  float targets_moved = 0.0f;  ///< the bound on the targets' move, when searched
+  bool searched = false;
+
+  /// targets_moved_now: a bound on how far any target point moved since a fixed start;
+  /// search(query, index, distance2, k) finds the k nearest; position(index) is a target
+  /// point as it is now.
+  template <typename Search, typename Position>
+  std::size_t nearest(const pcl::PointXYZ& query, float targets_moved_now, Search&& search, Position&& position) {
+    const Eigen::Vector3f q = query.getVector3fMap();
+    if (searched) {
+      const float others_at_least = dk - (q - at).norm() - (targets_moved_now - targets_moved);
+      std::size_t best = kNone;
+      float best_distance2 = std::numeric_limits<float>::infinity();
+      for (int c = 0; c < count; ++c) {
+        const float d2 = (position(candidates[c]) - q).squaredNorm();
+        if (d2 < best_distance2) {
+          best_distance2 = d2;
+          best = candidates[c];
+        }
+      }
+      if (count == 0 || (others_at_least > 0.0f && best_distance2 < others_at_least * others_at_least)) return best;
+    }
+    std::vector<int>& found = scratch_index();
+    std::vector<float>& distance2 = scratch_distance2();
+    count = search(query, found, distance2, kCandidates);
+    searched = true;
+    at = q;
+    targets_moved = targets_moved_now;
+    for (int c = 0; c < count; ++c) candidates[c] = static_cast<std::size_t>(found[c]);
+    dk = count == kCandidates ? std::sqrt(distance2[kCandidates - 1]) : std::numeric_limits<float>::infinity();
+    return count >= 1 ? candidates[0] : kNone;
+  }
+
+ private:
+  static std::vector<int>& scratch_index() {
+    thread_local std::vector<int> v(kCandidates);
+    return v;
+  }
+  static std::vector<float>& scratch_distance2() {
+    thread_local std::vector<float> v(kCandidates);
+    return v;
+  }
+};
+
+}  // namespace rgbdt::rgbdt_map::detail
