@@ -9,7 +9,8 @@
 //   pcl-gicp     LIDAR only with PCL's GICP instead of ours (same cost, no robust loss);
 //   accurate     LIDAR only, rgbdt_mapper --accurate: the smooth start-up over 4 tilts
 //                (RegistrationOptions::start_up_clouds), windows of 3 tilts on a smooth
-//                curve (window_clouds) and the merged local map (merged_local_map_m).
+//                curve (window_clouds) and the merged local map (merged_local_map_m) of
+//                24 tilts (RegistrationOptions::accurate()).
 // and prints, per session and mode, the anchored RMSE (trajectory_rmse_m, the issue's
 // number), the aligned error (trajectory_ate_m), the final position error, the height part
 // of the anchored error, the poses' mean pitch error relative to the first pose and its
@@ -69,13 +70,8 @@ struct Row {
 
 Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prior, IcpBackend backend,
         bool accurate) {
-  RegistrationOptions options;
+  RegistrationOptions options = accurate ? RegistrationOptions::accurate() : RegistrationOptions{};  // rgbdt_mapper's
   options.backend = backend;
-  if (accurate) {
-    options.start_up_clouds = 4;
-    options.merged_local_map_m = 0.25;
-    options.window_clouds = 3;
-  }
   Odometry odometry(options);
   if (prior) odometry.set_motion_prior(*prior);
   for (const core::TimedFile& f : core::read_time_index((session / "clouds" / "index.csv").string())) {

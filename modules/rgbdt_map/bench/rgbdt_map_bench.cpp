@@ -211,12 +211,9 @@ int main(int argc, char** argv) {
     truth.push_back({t0, cart_at(t0)});
   }
   auto run_odometry = [&](IcpBackend backend, bool accurate = false) {
-    RegistrationOptions options;
+    RegistrationOptions options = accurate ? RegistrationOptions::accurate() : RegistrationOptions{};
     options.backend = backend;
     if (accurate) {  // rgbdt_mapper --accurate
-      options.start_up_clouds = 4;
-      options.merged_local_map_m = 0.25;
-      options.window_clouds = 3;
       options.window_start_clouds = 5;  // so that windows run within the bench's 6-12 tilts: their time is the point
     }
     // --accurate: a window every window_interval_clouds tilts from the 5th (k = 4): its

@@ -671,6 +671,15 @@ std::string RegistrationOptions::validate() const {
   return os.str();
 }
 
+RegistrationOptions RegistrationOptions::accurate() {
+  RegistrationOptions options;
+  options.start_up_clouds = 4;
+  options.merged_local_map_m = 0.25;
+  options.window_clouds = 3;
+  options.local_map_clouds = 24;
+  return options;
+}
+
 XyzCloud::Ptr downsample(const XyzCloud& cloud, double voxel_m) {
   auto out = std::make_shared<XyzCloud>();
   pcl::VoxelGrid<pcl::PointXYZ> grid;

@@ -185,12 +185,9 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   kept_start.reanchor_first_cloud = false;
   Odometry lidar_only_kept_start(kept_start);
   // The accurate mode (rgbdt_mapper --accurate): a smooth start-up over 4 clouds, windows
-  // of 3 clouds on a smooth curve every 3rd cloud from the 13th on, and the merged local map.
-  RegistrationOptions accurate_options;
-  accurate_options.start_up_clouds = 4;
-  accurate_options.merged_local_map_m = 0.25;
-  accurate_options.window_clouds = 3;
-  Odometry accurate(accurate_options);
+  // of 3 clouds on a smooth curve every 3rd cloud from the 13th on, and the merged local map
+  // of 24 clouds.
+  Odometry accurate(RegistrationOptions::accurate());
   const std::vector<core::TimedFile> clouds = core::read_time_index((dir / "clouds" / "index.csv").string());
   ASSERT_GE(clouds.size(), 20u);
   int not_converged = 0;

@@ -69,7 +69,7 @@ struct RegistrationOptions {
   /// de-skewed again with the measured velocity and registered once more. Below it the
   /// de-skew error is below it too, under the LIDAR's range noise. [m]
   double refine_above_m = 0.01;
-  int local_map_clouds = 8;          ///< how many previous clouds form the local map
+  int local_map_clouds = 8;          ///< how many previous clouds form the local map (accurate(): 24)
   /// LIDAR only (no motion prior): once the first cloud has left the local map, register
   /// it once more against the clouds that followed it, de-skewed with the velocity
   /// extrapolated back from the second and third chords, and re-express the trajectory
@@ -127,6 +127,15 @@ struct RegistrationOptions {
   double min_range_m = 0.5;          ///< points nearer (the cart itself) are ignored [m]
   double max_range_m = 40.0;         ///< farther points are ignored [m]
   std::string validate() const;
+
+  /// rgbdt_mapper --accurate: the defaults with start_up_clouds = 4, merged_local_map_m =
+  /// 0.25, window_clouds = 3 (every 3rd tilt from the 13th) and local_map_clouds = 24. On
+  /// the 14 LIDAR-only 100 m sim streets of CONTRIBUTING.md (rgbdt_map_drift --seeds 14),
+  /// mean anchored RMSE 0.033 m (RMS over the streets 0.038 m, 1 of 14 above 0.05 m, worst
+  /// 0.074 m), aligned 0.007 m; with the local map of 8 clouds 0.036 / 0.044 m, 4 of 14
+  /// above 0.05 m, aligned 0.008 m, for ~20 % less time. Time: rgbdt_map_bench's
+  /// --accurate row.
+  static RegistrationOptions accurate();
 };
 
 struct RegistrationResult {
