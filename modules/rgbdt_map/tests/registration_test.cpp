@@ -315,10 +315,10 @@ struct KeptRun {
 };
 
 // Queries near targets like 0.25 m voxel centroids of a ground and a wall, twice over 4 cm
-// apart (an appended map: near-duplicate runners-up), moved over kSteps steps, the targets
-// on odd steps (each its own way) and the queries on even ones (each along its own
-// heading) by up to move(step); each step every query asks
-// NearestKept and the answer is checked against all the targets.
+// apart (an appended map: near-duplicate runners-up), moved over kSteps steps: on odd steps
+// each target by up to move(step) its own way, on even steps each query by move(step) along
+// its own heading. Each step every query asks NearestKept and the answer is checked against
+// all the targets.
 template <typename Move>
 KeptRun run_nearest_kept(Move&& move) {
   std::mt19937 rng(11);
