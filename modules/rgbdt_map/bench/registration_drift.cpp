@@ -15,7 +15,9 @@
 // number), the aligned error (trajectory_ate_m), the final position error, the height part
 // of the anchored error, the poses' mean pitch error relative to the first pose and its
 // standard deviation over the poses (each pose's attitude noise: the anchored error is
-// mostly the first pose's share of it, times the distance travelled).
+// mostly the first pose's share of it, times the distance travelled), and the registration's
+// CPU time per tilt (Odometry::add alone, on this thread: reading the clouds is not counted),
+// so that one run shows what each mode's accuracy costs on the street itself.
 // Usage: rgbdt_map_drift [--seeds N] [--duration S] [--dir DIR]
 //   sessions are written to DIR/seed<k> (default <tmp>/rgbdt_map_drift) and reused.
 #include <algorithm>
@@ -25,6 +27,7 @@
 #include <cstring>
 #include <filesystem>
 #include <random>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -61,11 +64,19 @@ Trajectory noisy_prior(const Trajectory& truth, double deg_per_tilt, double m_pe
   return Trajectory(out);
 }
 
+// CPU time of this thread [ms]: the cost on one core, whatever else runs on the machine.
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
 struct Row {
   double anchored_m, aligned_m, final_m;
   double vertical_m;  ///< the vertical part of anchored_m (RMS of the height error)
   double pitch_deg;   ///< mean pitch error of the poses, relative to the first pose
   double pitch_sd_deg;  ///< its standard deviation over the poses
+  double ms_per_tilt;   ///< Odometry::add's CPU time per tilt
 };
 
 Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prior, IcpBackend backend,
@@ -74,8 +85,12 @@ Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prio
   options.backend = backend;
   Odometry odometry(options);
   if (prior) odometry.set_motion_prior(*prior);
+  double add_ms = 0.0;
   for (const core::TimedFile& f : core::read_time_index((session / "clouds" / "index.csv").string())) {
-    odometry.add(*cloud::load_pcd(f.file).cloud, f.time_s);
+    const cloud::Cloud tilt = *cloud::load_pcd(f.file).cloud;
+    const double start = thread_cpu_ms();
+    odometry.add(tilt, f.time_s);
+    add_ms += thread_cpu_ms() - start;
   }
   const Trajectory& estimate = odometry.trajectory();
   const TimedPose& first = estimate.poses().front();
@@ -98,7 +113,8 @@ Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prio
   const auto n = static_cast<double>(estimate.size());
   const double mean_pitch = pitch_rad / n;
   return {trajectory_rmse_m(estimate, truth), trajectory_ate_m(estimate, truth), final_m, std::sqrt(vertical2 / n),
-          mean_pitch * 180.0 / M_PI, std::sqrt(std::max(0.0, pitch2_rad2 / n - mean_pitch * mean_pitch)) * 180.0 / M_PI};
+          mean_pitch * 180.0 / M_PI, std::sqrt(std::max(0.0, pitch2_rad2 / n - mean_pitch * mean_pitch)) * 180.0 / M_PI,
+          add_ms / n};
 }
 
 }  // namespace
@@ -128,11 +144,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "rgbdt_map_drift: --seeds %d, --duration %g: expected >= 1 and > 5 s\n", seeds, duration_s);
     return 2;
   }
-  std::printf("%-6s %-11s %12s %12s %10s %11s %10s %13s\n", "seed", "guess", "anchored m", "aligned m", "final m",
-              "of it: z m", "pitch deg", "pitch sd deg");
+  std::printf("%-6s %-11s %12s %12s %10s %11s %10s %13s %11s\n", "seed", "guess", "anchored m", "aligned m", "final m",
+              "of it: z m", "pitch deg", "pitch sd deg", "ms / tilt");
   constexpr int kModes = 5;
   const char* modes[kModes] = {"lidar-only", "gyro-prior", "true-prior", "pcl-gicp", "accurate"};
-  double sum[kModes][5] = {};
+  double sum[kModes][6] = {};
   for (int seed = 1; seed <= seeds; ++seed) {
     const fs::path session = dir / ("seed" + std::to_string(seed));
     if (!fs::exists(session / "ground_truth" / "trajectory.csv")) {
@@ -156,14 +172,15 @@ int main(int argc, char** argv) {
       sum[m][2] += r.vertical_m;
       sum[m][3] += r.pitch_deg;
       sum[m][4] += r.pitch_sd_deg;
-      std::printf("%-6d %-11s %12.4f %12.4f %10.4f %11.4f %10.3f %13.3f\n", seed, modes[m], r.anchored_m, r.aligned_m,
-                  r.final_m, r.vertical_m, r.pitch_deg, r.pitch_sd_deg);
+      sum[m][5] += r.ms_per_tilt;
+      std::printf("%-6d %-11s %12.4f %12.4f %10.4f %11.4f %10.3f %13.3f %11.1f\n", seed, modes[m], r.anchored_m,
+                  r.aligned_m, r.final_m, r.vertical_m, r.pitch_deg, r.pitch_sd_deg, r.ms_per_tilt);
       std::fflush(stdout);
     }
   }
   for (int m = 0; m < kModes; ++m) {
-    std::printf("%-6s %-11s %12.4f %12.4f %10s %11.4f %10.3f %13.3f\n", "mean", modes[m], sum[m][0] / seeds,
-                sum[m][1] / seeds, "", sum[m][2] / seeds, sum[m][3] / seeds, sum[m][4] / seeds);
+    std::printf("%-6s %-11s %12.4f %12.4f %10s %11.4f %10.3f %13.3f %11.1f\n", "mean", modes[m], sum[m][0] / seeds,
+                sum[m][1] / seeds, "", sum[m][2] / seeds, sum[m][3] / seeds, sum[m][4] / seeds, sum[m][5] / seeds);
   }
   return 0;
 }
