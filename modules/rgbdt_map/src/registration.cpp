@@ -647,6 +647,10 @@ std::string RegistrationOptions::validate() const {
   if (!(translation_epsilon_m > 0.0)) os << "translation_epsilon_m = " << translation_epsilon_m << ", expected > 0; ";
   if (!(rotation_epsilon_rad > 0.0)) os << "rotation_epsilon_rad = " << rotation_epsilon_rad << ", expected > 0; ";
   if (!(robust_scale2 > 0.0)) os << "robust_scale2 = " << robust_scale2 << ", expected > 0; ";
+  if (!(settled_robust_scale2 >= 0.0)) {
+    os << "settled_robust_scale2 = " << settled_robust_scale2 << ", expected 0 (off) or > 0; ";
+  }
+  if (settled_from_cloud < 2) os << "settled_from_cloud = " << settled_from_cloud << ", expected >= 2; ";
   if (window_clouds != 0 && (window_clouds < 2 || window_clouds >= local_map_clouds)) {
     os << "window_clouds = " << window_clouds << ", expected 0 (off) or 2 to local_map_clouds - 1 = "
        << local_map_clouds - 1 << "; ";
@@ -677,6 +681,7 @@ RegistrationOptions RegistrationOptions::accurate() {
   options.merged_local_map_m = 0.25;
   options.window_clouds = 3;
   options.local_map_clouds = 24;
+  options.settled_robust_scale2 = 0.1;
   return options;
 }
 
@@ -914,6 +919,10 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   }
   const auto start = Clock::now();
   Impl& m = *impl_;
+  // From here on every registration, window and re-anchoring uses the settled scale.
+  if (options_.settled_robust_scale2 > 0.0 && static_cast<int>(poses.size()) == options_.settled_from_cloud) {
+    options_.robust_scale2 = options_.settled_robust_scale2;
+  }
   // kRobust and kGeneralized share GICP's covariances and local map.
   const bool generalized = options_.backend != IcpBackend::kPointToPoint;
   const bool robust = options_.backend == IcpBackend::kRobust;

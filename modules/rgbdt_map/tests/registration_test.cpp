@@ -285,7 +285,7 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   EXPECT_LT(rmse_accurate, 0.03);
 }
 
-TEST(Odometry, RejectsBadStartUpWindowAndMergeOptions) {
+TEST(Odometry, RejectsBadStartUpWindowMergeAndScaleOptions) {
   RegistrationOptions options;
   options.start_up_clouds = 3;  // a cubic through 3 poses is not pinned
   EXPECT_NE(options.validate().find("start_up_clouds = 3"), std::string::npos) << options.validate();
@@ -305,6 +305,13 @@ TEST(Odometry, RejectsBadStartUpWindowAndMergeOptions) {
   options.window_interval_clouds = 0;
   EXPECT_NE(options.validate().find("window_interval_clouds = 0"), std::string::npos) << options.validate();
   options.window_interval_clouds = 3;
+  EXPECT_EQ(options.validate(), "");
+  options.settled_robust_scale2 = -0.1;
+  EXPECT_NE(options.validate().find("settled_robust_scale2 = -0.1"), std::string::npos) << options.validate();
+  options.settled_robust_scale2 = 0.1;
+  options.settled_from_cloud = 1;  // the first cloud registers nothing: no residuals to be loose for
+  EXPECT_NE(options.validate().find("settled_from_cloud = 1"), std::string::npos) << options.validate();
+  options.settled_from_cloud = 10;
   EXPECT_EQ(options.validate(), "");
 }
 
