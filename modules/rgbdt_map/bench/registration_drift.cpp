@@ -11,6 +11,10 @@
 //                (RegistrationOptions::start_up_clouds), windows of 3 tilts on a smooth
 //                curve (window_clouds) and the merged local map (merged_local_map_m) of
 //                24 tilts (RegistrationOptions::accurate()).
+//   map-at-truth the true motion as the prior and every cloud registered from, and placed
+//                in the local map at, the true pose (RegistrationOptions::map_at_prior):
+//                each pose's error is that one registration's own bias, none accumulated.
+//                After the table, its mean pitch error per tilt for each sweep direction.
 // and prints, per session and mode, the anchored RMSE (trajectory_rmse_m, the issue's
 // number), the aligned error (trajectory_ate_m), the final position error, the height part
 // of the anchored error, the poses' mean pitch error relative to the first pose and its
@@ -25,9 +29,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
 #include <random>
-#include <ctime>
 #include <string>
 #include <vector>
 
@@ -77,12 +81,13 @@ struct Row {
   double pitch_deg;   ///< mean pitch error of the poses, relative to the first pose
   double pitch_sd_deg;  ///< its standard deviation over the poses
   double ms_per_tilt;   ///< Odometry::add's CPU time per tilt
+  /// Sums over the poses of the pitch error [deg] and its square, and their count, for
+  /// even and odd clouds (the sim's two sweep directions).
+  double sweep_sum[2] = {}, sweep_sum2[2] = {};
+  int sweep_n[2] = {};
 };
 
-Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prior, IcpBackend backend,
-        bool accurate) {
-  RegistrationOptions options = accurate ? RegistrationOptions::accurate() : RegistrationOptions{};  // rgbdt_mapper's
-  options.backend = backend;
+Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prior, const RegistrationOptions& options) {
   Odometry odometry(options);
   if (prior) odometry.set_motion_prior(*prior);
   double add_ms = 0.0;
@@ -101,7 +106,9 @@ Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prio
   // Where the anchored error lies: the truth moves on a level street, so a height error
   // that grows with distance is a pitch error of the whole map relative to the first pose.
   double vertical2 = 0.0, pitch_rad = 0.0, pitch2_rad2 = 0.0;
-  for (const TimedPose& p : estimate.poses()) {
+  Row row;
+  for (std::size_t k = 0; k < estimate.size(); ++k) {
+    const TimedPose& p = estimate.poses()[k];
     const Eigen::Isometry3d T_truth = truth.pose_at(p.time_s);
     const Eigen::Isometry3d anchored = T_truth_estimate * p.T_world_lidar;
     const double dz = anchored.translation().z() - T_truth.translation().z();
@@ -109,12 +116,21 @@ Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prio
     const double pitch = core::to_vector6(T_truth.inverse() * anchored)[1];
     pitch_rad += pitch;
     pitch2_rad2 += pitch * pitch;
+    const double pitch_deg = pitch * 180.0 / M_PI;
+    row.sweep_sum[k % 2] += pitch_deg;
+    row.sweep_sum2[k % 2] += pitch_deg * pitch_deg;
+    ++row.sweep_n[k % 2];
   }
   const auto n = static_cast<double>(estimate.size());
   const double mean_pitch = pitch_rad / n;
-  return {trajectory_rmse_m(estimate, truth), trajectory_ate_m(estimate, truth), final_m, std::sqrt(vertical2 / n),
-          mean_pitch * 180.0 / M_PI, std::sqrt(std::max(0.0, pitch2_rad2 / n - mean_pitch * mean_pitch)) * 180.0 / M_PI,
-          add_ms / n};
+  row.anchored_m = trajectory_rmse_m(estimate, truth);
+  row.aligned_m = trajectory_ate_m(estimate, truth);
+  row.final_m = final_m;
+  row.vertical_m = std::sqrt(vertical2 / n);
+  row.pitch_deg = mean_pitch * 180.0 / M_PI;
+  row.pitch_sd_deg = std::sqrt(std::max(0.0, pitch2_rad2 / n - mean_pitch * mean_pitch)) * 180.0 / M_PI;
+  row.ms_per_tilt = add_ms / n;
+  return row;
 }
 
 }  // namespace
@@ -133,8 +149,8 @@ int main(int argc, char** argv) {
       dir = argv[++i];
     } else {
       std::printf(
-          "rgbdt_map_drift: registration drift on LIDAR-only sim streets, several seeds, three kinds of\n"
-          "initial guess (see the top of bench/registration_drift.cpp).\n"
+          "rgbdt_map_drift: registration drift on LIDAR-only sim streets, several seeds, six modes of\n"
+          "guess and registration (see the top of bench/registration_drift.cpp).\n"
           "Usage: %s [--seeds N (7)] [--duration S (80, the issue's 100 m at 1.25 m/s)] [--dir DIR]\n",
           argv[0]);
       return arg == "--help" || arg == "-h" ? 0 : 2;
@@ -146,9 +162,15 @@ int main(int argc, char** argv) {
   }
   std::printf("%-6s %-11s %12s %12s %10s %11s %10s %13s %11s\n", "seed", "guess", "anchored m", "aligned m", "final m",
               "of it: z m", "pitch deg", "pitch sd deg", "ms / tilt");
-  constexpr int kModes = 5;
-  const char* modes[kModes] = {"lidar-only", "gyro-prior", "true-prior", "pcl-gicp", "accurate"};
+  constexpr int kModes = 6;
+  const char* modes[kModes] = {"lidar-only", "gyro-prior", "true-prior", "pcl-gicp", "accurate", "map-at-truth"};
+  RegistrationOptions options[kModes];  // rgbdt_mapper's defaults, but:
+  options[3].backend = IcpBackend::kGeneralized;
+  options[4] = RegistrationOptions::accurate();
+  options[5].map_at_prior = true;
   double sum[kModes][6] = {};
+  double sweep_sum[2] = {}, sweep_sum2[2] = {};
+  int sweep_n[2] = {};
   for (int seed = 1; seed <= seeds; ++seed) {
     const fs::path session = dir / ("seed" + std::to_string(seed));
     if (!fs::exists(session / "ground_truth" / "trajectory.csv")) {
@@ -163,10 +185,16 @@ int main(int argc, char** argv) {
     }
     const Trajectory truth = read_trajectory_csv((session / "ground_truth" / "trajectory.csv").string());
     const Trajectory gyro = noisy_prior(truth, 0.02, 0.01, 1000u + static_cast<unsigned>(seed));
-    const Trajectory* priors[kModes] = {nullptr, &gyro, &truth, nullptr, nullptr};
+    const Trajectory* priors[kModes] = {nullptr, &gyro, &truth, nullptr, nullptr, &truth};
     for (int m = 0; m < kModes; ++m) {
-      const Row r =
-          run(session, truth, priors[m], m == 3 ? IcpBackend::kGeneralized : IcpBackend::kRobust, m == 4);
+      const Row r = run(session, truth, priors[m], options[m]);
+      if (m == 5) {
+        for (int d = 0; d < 2; ++d) {
+          sweep_sum[d] += r.sweep_sum[d];
+          sweep_sum2[d] += r.sweep_sum2[d];
+          sweep_n[d] += r.sweep_n[d];
+        }
+      }
       sum[m][0] += r.anchored_m;
       sum[m][1] += r.aligned_m;
       sum[m][2] += r.vertical_m;
@@ -181,6 +209,17 @@ int main(int argc, char** argv) {
   for (int m = 0; m < kModes; ++m) {
     std::printf("%-6s %-11s %12.4f %12.4f %10s %11.4f %10.3f %13.3f %11.1f\n", "mean", modes[m], sum[m][0] / seeds,
                 sum[m][1] / seeds, "", sum[m][2] / seeds, sum[m][3] / seeds, sum[m][4] / seeds, sum[m][5] / seeds);
+  }
+  // The sim's tilt k sweeps from the profile's start angle (up) down for even k, back up
+  // for odd k; a cloud's index is its tilt's.
+  std::printf("\nmap-at-truth: each registration's own pitch error, mean over the tilts of all seeds\n");
+  const char* sweeps[2] = {"even clouds (sweeping down)", "odd clouds (sweeping up)"};
+  for (int d = 0; d < 2; ++d) {
+    if (sweep_n[d] < 2) continue;
+    const double mean = sweep_sum[d] / sweep_n[d];
+    const double sd = std::sqrt(std::max(0.0, sweep_sum2[d] / sweep_n[d] - mean * mean));
+    std::printf("  %-28s %+8.4f deg  (standard error %.4f deg, %d tilts)\n", sweeps[d], mean,
+                sd / std::sqrt(static_cast<double>(sweep_n[d])), sweep_n[d]);
   }
   return 0;
 }

@@ -941,12 +941,16 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   const TimedPoints centroids =
       sensor_voxels(cloud, options_.source_voxel_m, options_.min_range_m, options_.max_range_m);
   const bool with_prior = !prior_.empty();
+  if (options_.map_at_prior && !with_prior) {
+    throw std::logic_error("Odometry::add: RegistrationOptions::map_at_prior needs a motion prior (set_motion_prior)");
+  }
   XyzCloud::Ptr source;
   if (with_prior) {
     const Eigen::Isometry3d T_start_frame = prior_.pose_at(cloud_time_s).inverse();
     source = deskew_points(centroids, [&](double tau_s) { return T_start_frame * prior_.pose_at(cloud_time_s + tau_s); });
     if (!poses.empty()) {
-      predicted = poses.back().T_world_lidar * prior_.pose_at(poses.back().time_s).inverse() * prior_.pose_at(cloud_time_s);
+      const TimedPose& from = options_.map_at_prior ? poses.front() : poses.back();
+      predicted = from.T_world_lidar * prior_.pose_at(from.time_s).inverse() * prior_.pose_at(cloud_time_s);
     }
   } else {
     source = deskew_points(centroids, motion_per_s);
@@ -1043,12 +1047,13 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   trajectory_.push_back({cloud_time_s, step.T_world_lidar});
 
   // The cloud joins the local map in the world frame, its covariances rotated with it.
+  const Eigen::Isometry3d& T_world_map_cloud = options_.map_at_prior ? predicted : step.T_world_lidar;
   Impl::MapCloud entry;
   entry.points_world = std::make_shared<XyzCloud>();
-  pcl::transformPointCloud(*source, *entry.points_world, step.T_world_lidar.matrix().cast<float>());
+  pcl::transformPointCloud(*source, *entry.points_world, T_world_map_cloud.matrix().cast<float>());
   if (generalized && (poses.size() > 1 || with_prior)) {
     if (!source_covariances) source_covariances = m.gicp.covariances_of(source);
-    const Eigen::Matrix3d R = step.T_world_lidar.linear();
+    const Eigen::Matrix3d R = T_world_map_cloud.linear();
     entry.covariances_world = std::make_shared<Covariances>(source_covariances->size());
     for (std::size_t i = 0; i < source_covariances->size(); ++i) {
       (*entry.covariances_world)[i] = R * (*source_covariances)[i] * R.transpose();
