@@ -917,6 +917,9 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     throw std::invalid_argument("Odometry::add: cloud time " + std::to_string(cloud_time_s) +
                                 " s is not after the previous cloud's " + std::to_string(poses.back().time_s) + " s");
   }
+  if (options_.map_at_prior && prior_.empty()) {
+    throw std::logic_error("Odometry::add: RegistrationOptions::map_at_prior needs a motion prior (set_motion_prior)");
+  }
   const auto start = Clock::now();
   Impl& m = *impl_;
   // From here on every registration, window and re-anchoring uses the settled scale.
@@ -941,9 +944,6 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   const TimedPoints centroids =
       sensor_voxels(cloud, options_.source_voxel_m, options_.min_range_m, options_.max_range_m);
   const bool with_prior = !prior_.empty();
-  if (options_.map_at_prior && !with_prior) {
-    throw std::logic_error("Odometry::add: RegistrationOptions::map_at_prior needs a motion prior (set_motion_prior)");
-  }
   XyzCloud::Ptr source;
   if (with_prior) {
     const Eigen::Isometry3d T_start_frame = prior_.pose_at(cloud_time_s).inverse();

@@ -241,8 +241,8 @@ TEST(Odometry, MotionPriorGuidesRegistrationAndDeskewOnTheSimStreet) {
   EXPECT_LT(rmse_guided, 0.01);
   EXPECT_LT(rmse_guided, rmse_lidar_only);
   // With the map at the (true) prior nothing accumulates: each pose is one registration's
-  // error against an error-free map. Measured 0.12 cm against 0.24 cm; equal if the map
-  // were placed at the registered poses.
+  // error against an error-free map. Measured 0.12 cm against 0.24 cm; equal if the option
+  // were ignored.
   const double rmse_at_prior = trajectory_rmse_m(at_prior.trajectory(), truth);
   std::printf("map at the prior: %.4f m\n", rmse_at_prior);
   EXPECT_LT(rmse_at_prior, rmse_guided);
