@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <thread>
 
 #include "rgbdt/core/transform.hpp"
 #include "rgbdt/rgbdt_map/colorize.hpp"
@@ -280,4 +281,33 @@ TEST(Colorize, StructuredYardColoursAlmostAllVisiblePoints) {
   // require none.
   EXPECT_GT(hidden, 50);
   EXPECT_LE(hidden_colored, 0.03 * hidden);
+}
+
+// project_with_occlusion keeps its buffers per thread between calls: a call after a larger
+// cloud on another camera, and after the same scene at half the distance (whose depths
+// would hide it if the z-buffer kept them), must give exactly what a first call on a fresh
+// thread gives.
+TEST(Colorize, ReusedBuffersGiveWhatAFreshThreadGives) {
+  const Rig rig = make_rig();
+  test::TiltScanOptions dense;
+  dense.scans = 30;
+  const cloud::Cloud large = test::scan_tilt(test::structured_scene(), dense);
+  const cloud::Cloud small = test::scan_tilt(test::box_wall_scene(), {});
+  ASSERT_GT(large.size(), small.size());
+  cloud::Cloud nearer = small;
+  for (auto& p : nearer) p.getVector3fMap() *= 0.5f;
+  auto project_small = [&] { return project_with_occlusion(small, true, 0.0, rig.rgb, 0.0, nullptr); };
+  CameraProjection fresh;
+  std::thread([&] { fresh = project_small(); }).join();
+  (void)project_with_occlusion(large, true, 0.0, rig.thermal, 0.0, nullptr);
+  (void)project_with_occlusion(nearer, true, 0.0, rig.rgb, 0.0, nullptr);
+  const CameraProjection reused = project_small();
+  ASSERT_EQ(reused.status.size(), small.size());
+  EXPECT_EQ(reused.visible, fresh.visible);
+  EXPECT_GT(fresh.visible, 0u);
+  for (std::size_t i = 0; i < small.size(); ++i) {
+    ASSERT_EQ(reused.status[i], fresh.status[i]) << "point " << i;
+    ASSERT_EQ(reused.depth_m[i], fresh.depth_m[i]) << "point " << i;
+    ASSERT_EQ(reused.pixel_px[i], fresh.pixel_px[i]) << "point " << i;
+  }
 }
