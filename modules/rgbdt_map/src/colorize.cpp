@@ -89,7 +89,8 @@ void rasterize(DepthBuffer& buffer, const Eigen::Vector2f& a, const Eigen::Vecto
 /// project_with_occlusion's per-point and per-cell buffers, kept per thread between calls.
 /// A tilt's buffers take ~2.5 MB: allocated anew on every call, glibc maps them from the
 /// kernel and unmaps them on return, and the page faults of touching them again cost a
-/// fifth of the call (perf on zz_color, a 31k-point tilt). Reused, each call only rewrites them.
+/// fifth of the call (perf, rgbdt_map_bench's 31k-point tilt). Reused, each call only
+/// rewrites them.
 struct Workspace {
   std::vector<std::uint8_t> projectable, edge_vertex;
   std::vector<Eigen::Vector3f> q_camera, origin_camera;
