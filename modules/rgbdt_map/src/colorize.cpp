@@ -64,7 +64,9 @@ void rasterize(DepthBuffer& buffer, const Eigen::Vector2f& a, const Eigen::Vecto
   // Edge lengths turn edge functions (twice the signed area) into distances [cells].
   const float la = (c - b).norm(), lb = (a - c).norm(), lc = (b - a).norm();
   const float ia = 1.0f / za, ib = 1.0f / zb, ic = 1.0f / zc;
-  float* const cells = buffer.depth.data();  // a local: stores through it cannot move it
+  // Hoisted: through buffer.at() the compiled loop loaded the vector's data pointer again
+  // for every cell (perf annotate).
+  float* const cells = buffer.depth.data();
   const std::size_t row_cells = static_cast<std::size_t>(buffer.width);
   for (int y = y0; y <= y1; ++y) {
     float* const row = cells + static_cast<std::size_t>(y) * row_cells;
