@@ -71,27 +71,97 @@ class CovarianceGicp : public Counted<Gicp> {
       own.setInputCloud(cloud);
       tree = &own;
     }
-    constexpr double kEpsilon = 0.001;  // PCL's gicp_epsilon_
     auto out = std::make_shared<Covariances>(cloud->size());
-    std::vector<int> index(static_cast<std::size_t>(k));
-    std::vector<float> distance2(static_cast<std::size_t>(k));
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
-    for (std::size_t i = 0; i < cloud->size(); ++i) {
-      const int found = tree->nearestKSearch((*cloud)[i], k, index, distance2);
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (int j = 0; j < found; ++j) mean += (*cloud)[static_cast<std::size_t>(index[j])].getVector3fMap().cast<double>();
-      mean /= found;
-      Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-      for (int j = 0; j < found; ++j) {
-        const Eigen::Vector3d d = (*cloud)[static_cast<std::size_t>(index[j])].getVector3fMap().cast<double>() - mean;
-        scatter.noalias() += d * d.transpose();
-      }
-      solver.computeDirect(scatter / found);
-      const Eigen::Vector3d normal = solver.eigenvectors().col(0);  // eigenvalues ascending
-      (*out)[i] = Eigen::Matrix3d::Identity() - (1.0 - kEpsilon) * normal * normal.transpose();
-    }
+    for (std::size_t i = 0; i < cloud->size(); ++i) (*out)[i] = covariance_at(*cloud, *tree, i, k);
     return out;
   }
+
+  /// The covariance of point i of `cloud` alone (as covariances_of computes each).
+  static Eigen::Matrix3d covariance_at(const XyzCloud& cloud, const MapTree& tree, std::size_t i, int k) {
+    constexpr double kEpsilon = 0.001;  // PCL's gicp_epsilon_
+    thread_local std::vector<int> index;
+    thread_local std::vector<float> distance2;
+    index.resize(static_cast<std::size_t>(k));
+    distance2.resize(static_cast<std::size_t>(k));
+    const int found = tree.nearestKSearch(cloud[i], k, index, distance2);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int j = 0; j < found; ++j) mean += cloud[static_cast<std::size_t>(index[j])].getVector3fMap().cast<double>();
+    mean /= found;
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (int j = 0; j < found; ++j) {
+      const Eigen::Vector3d d = cloud[static_cast<std::size_t>(index[j])].getVector3fMap().cast<double>() - mean;
+      scatter.noalias() += d * d.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+    solver.computeDirect(scatter / found);
+    const Eigen::Vector3d normal = solver.eigenvectors().col(0);  // eigenvalues ascending
+    return Eigen::Matrix3d::Identity() - (1.0 - kEpsilon) * normal * normal.transpose();
+  }
+};
+
+/// The GICP covariances of a target's points, as robust_gicp and solve_curve read them:
+/// given whole, or (a merged local map) each computed the first time a correspondence asks
+/// for it, then kept. A merged map's covariances need a 20-neighbour search per point,
+/// and on sim street seed 1 (`--accurate`) the window's solve and the registrations until
+/// the next window matched ~31 % of its points: the rest were never used. A lazy part may be
+/// followed by points whose covariances are given (the clouds appended between windows);
+/// copies share the lazy part, and what one computes the others read.
+class TargetCovariances {
+ public:
+  TargetCovariances() = default;
+  explicit TargetCovariances(std::shared_ptr<const Covariances> given) : given_(std::move(given)) {
+    given_data_ = given_->data();
+  }
+  /// Those of `cloud`, each on first use, from its `tree` (CovarianceGicp::covariance_at).
+  TargetCovariances(XyzCloud::ConstPtr cloud, std::shared_ptr<const MapTree> tree, int neighbours)
+      : lazy_(std::make_shared<Lazy>()) {
+    if (static_cast<int>(cloud->size()) < neighbours) {  // as CovarianceGicp::covariances_of
+      throw std::invalid_argument("GICP covariances: a cloud of " + std::to_string(cloud->size()) +
+                                  " points after downsampling, expected at least covariance_neighbours = " +
+                                  std::to_string(neighbours));
+    }
+    lazy_->values.resize(cloud->size());
+    lazy_->ready.assign(cloud->size(), 0);
+    lazy_->cloud = std::move(cloud);
+    lazy_->tree = std::move(tree);
+    lazy_->neighbours = neighbours;
+    lazy_size_ = lazy_->values.size();
+  }
+  /// These, followed by `more` (a copy: the lazy part shared).
+  TargetCovariances followed_by(const Covariances& more) const {
+    TargetCovariances out;
+    out.lazy_ = lazy_;
+    out.lazy_size_ = lazy_size_;
+    auto tail = std::make_shared<Covariances>();
+    tail->reserve((given_ ? given_->size() : 0) + more.size());
+    if (given_) tail->insert(tail->end(), given_->begin(), given_->end());
+    tail->insert(tail->end(), more.begin(), more.end());
+    out.given_ = std::move(tail);
+    out.given_data_ = out.given_->data();
+    return out;
+  }
+  std::size_t size() const { return lazy_size_ + (given_ ? given_->size() : 0); }
+  const Eigen::Matrix3d& operator[](std::size_t i) const {
+    if (i >= lazy_size_) return given_data_[i - lazy_size_];
+    if (!lazy_->ready[i]) {
+      lazy_->values[i] = CovarianceGicp::covariance_at(*lazy_->cloud, *lazy_->tree, i, lazy_->neighbours);
+      lazy_->ready[i] = 1;
+    }
+    return lazy_->values[i];
+  }
+
+ private:
+  struct Lazy {
+    XyzCloud::ConstPtr cloud;
+    std::shared_ptr<const MapTree> tree;
+    int neighbours = 0;
+    Covariances values;
+    std::vector<char> ready;
+  };
+  std::shared_ptr<Lazy> lazy_;
+  std::size_t lazy_size_ = 0;  ///< the first points, lazy_'s
+  std::shared_ptr<const Covariances> given_;
+  const Eigen::Matrix3d* given_data_ = nullptr;  ///< given_'s, for the points after
 };
 
 void configure(Icp& icp, const RegistrationOptions& options) {
@@ -217,7 +287,7 @@ core::Vector6d twist_between(const TimedPose& a, const TimedPose& b) {
 /// a run whose pose only sets the de-skew of the next.
 RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source_covariances,
                                const XyzCloud& target, const MapTree& target_tree,
-                               const Covariances& target_covariances, const Eigen::Isometry3d& guess,
+                               const TargetCovariances& target_covariances, const Eigen::Isometry3d& guess,
                                const RegistrationOptions& options, std::vector<NearestKept>* kept = nullptr,
                                bool coarse = false) {
   RegistrationResult result;
@@ -436,7 +506,7 @@ CurveCoefficients fit_curve(const std::vector<std::pair<double, Eigen::Isometry3
 /// Older clouds the curve's clouds are registered against as well, held fixed.
 struct FixedMap {
   const XyzCloud& points;
-  const Covariances& covariances;
+  const TargetCovariances& covariances;
   const MapTree& tree;
 };
 
@@ -722,7 +792,7 @@ RegistrationResult register_clouds(const XyzCloud::ConstPtr& source, const XyzCl
     MapTree tree;
     tree.setInputCloud(target);
     const RegistrationResult r = robust_gicp(*source, *estimator.covariances_of(source), *target, tree,
-                                             *estimator.covariances_of(target), guess, options);
+                                             TargetCovariances(estimator.covariances_of(target, &tree)), guess, options);
     result.T_target_source = r.T_target_source;
     result.converged = r.converged;
     result.iterations = r.iterations;
@@ -816,8 +886,8 @@ struct Odometry::Impl {
   XyzCloud::Ptr map;
   CovarianceGicp gicp;
   Counted<Icp> icp;
-  MapTree map_tree;                           ///< kRobust: search tree of `map`
-  std::shared_ptr<Covariances> map_covariances;  ///< kRobust: those of `map`
+  std::shared_ptr<MapTree> map_tree = std::make_shared<MapTree>();  ///< kRobust: search tree of `map`
+  TargetCovariances map_covariances;  ///< kRobust: those of `map`
   TimedPoints first_cloud;  ///< the first tilt's centroids, until a velocity is known to de-skew them
   bool have_first = false;
   TimedPoints anchor;  ///< the first tilt's centroids, until reanchor_first_cloud
@@ -825,7 +895,7 @@ struct Odometry::Impl {
 
   /// The local map as last merged (RegistrationOptions::merged_local_map_m, kRobust).
   XyzCloud::Ptr merged_points;
-  std::shared_ptr<Covariances> merged_covariances;
+  TargetCovariances merged_covariances;
   long merged_serial = -1;  ///< the newest cloud in it
   long serial = 0;          ///< the clouds added so far
 
@@ -836,14 +906,15 @@ struct Odometry::Impl {
   void rebuild_target(IcpBackend backend, double merge_m, bool append = false) {
     if (append && merged_points && backend == IcpBackend::kRobust) {
       map = std::make_shared<XyzCloud>(*merged_points);
-      auto covariances = std::make_shared<Covariances>(*merged_covariances);
+      Covariances appended;
       for (const auto& c : recent) {
         if (c.serial <= merged_serial) continue;
         *map += *c.points_world;
-        covariances->insert(covariances->end(), c.covariances_world->begin(), c.covariances_world->end());
+        appended.insert(appended.end(), c.covariances_world->begin(), c.covariances_world->end());
       }
-      map_tree.setInputCloud(map);
-      map_covariances = covariances;
+      map_tree = std::make_shared<MapTree>();  // a new one: the merged part's lazy covariances keep theirs
+      map_tree->setInputCloud(map);
+      map_covariances = merged_covariances.followed_by(appended);
       return;
     }
     const bool generalized = backend != IcpBackend::kPointToPoint;
@@ -856,8 +927,11 @@ struct Odometry::Impl {
     const bool merge = merge_m > 0.0 && generalized && recent.size() >= 2;
     if (merge) map = downsample(*map, merge_m);
     if (backend == IcpBackend::kRobust) {
-      map_tree.setInputCloud(map);
-      map_covariances = merge ? gicp.covariances_of(map, &map_tree) : covariances;  // the tree serves both
+      map_tree = std::make_shared<MapTree>();  // a new one: lazy covariances keep the tree they were made with
+      map_tree->setInputCloud(map);
+      // The tree serves the searches and a merged map's covariances.
+      map_covariances = merge ? TargetCovariances(map, map_tree, gicp.getCorrespondenceRandomness())
+                              : TargetCovariances(covariances);
       if (merge) {
         merged_points = map;
         merged_covariances = map_covariances;
@@ -1001,7 +1075,7 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     bool coarse = robust;
     auto run = [&](auto& icp, const Eigen::Isometry3d& guess, RegistrationResult& r) {
       if (robust) {
-        r = robust_gicp(*source, *source_covariances, *m.map, m.map_tree, *m.map_covariances, guess, options_, &kept,
+        r = robust_gicp(*source, *source_covariances, *m.map, *m.map_tree, m.map_covariances, guess, options_, &kept,
                         coarse);
         return;
       }
@@ -1160,11 +1234,11 @@ void Odometry::refine_window() {
   }
   // The older clouds of the local map, held fixed (merged as the local map is).
   auto fixed_points = std::make_shared<XyzCloud>();
-  auto fixed_covariances = std::make_shared<Covariances>();
+  auto concatenated = std::make_shared<Covariances>();
   for (std::size_t i = 0; i < first_entry; ++i) {
     *fixed_points += *m.recent[i].points_world;
-    fixed_covariances->insert(fixed_covariances->end(), m.recent[i].covariances_world->begin(),
-                              m.recent[i].covariances_world->end());
+    concatenated->insert(concatenated->end(), m.recent[i].covariances_world->begin(),
+                         m.recent[i].covariances_world->end());
   }
   if (options_.merged_local_map_m > 0.0) {
     fixed_points = downsample(*fixed_points, options_.merged_local_map_m);
@@ -1173,10 +1247,12 @@ void Odometry::refine_window() {
       return;
     }
   }
-  MapTree fixed_tree;
-  fixed_tree.setInputCloud(fixed_points);
-  if (options_.merged_local_map_m > 0.0) fixed_covariances = m.gicp.covariances_of(fixed_points, &fixed_tree);
-  const FixedMap fixed{*fixed_points, *fixed_covariances, fixed_tree};
+  auto fixed_tree = std::make_shared<MapTree>();
+  fixed_tree->setInputCloud(fixed_points);
+  const TargetCovariances fixed_covariances =
+      options_.merged_local_map_m > 0.0 ? TargetCovariances(fixed_points, fixed_tree, options_.covariance_neighbours)
+                                        : TargetCovariances(concatenated);
+  const FixedMap fixed{*fixed_points, fixed_covariances, *fixed_tree};
   const CurveResult r = solve_curve(clouds, base, fit_curve(samples, true), true, &fixed, m.gicp, options_);
   window_.time_ms += ms_since(start);
   ++window_.solves;
@@ -1259,7 +1335,7 @@ void Odometry::reanchor_first_cloud() {
   const Eigen::Isometry3d& before = poses.front().T_world_lidar;
   RegistrationResult r;
   if (options_.backend == IcpBackend::kRobust) {
-    r = robust_gicp(*source, *m.gicp.covariances_of(source), *m.map, m.map_tree, *m.map_covariances, before,
+    r = robust_gicp(*source, *m.gicp.covariances_of(source), *m.map, *m.map_tree, m.map_covariances, before,
                     options_);
   } else {
     r = register_clouds(source, m.map, before, options_);
