@@ -337,15 +337,22 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
       if (r.squaredNorm() > gate2) continue;
       const Eigen::Matrix3d M = (target_covariances[j] + R * source_covariances[i] * R.transpose()).inverse();
       const double w = 1.0 / (1.0 + r.dot(M * r) / options.robust_scale2);
-      // d(exp(w) (q - c) + c + t) / d(w, t) at 0.
+      // d(exp(w) (q - c) + c + t) / d(w, t) at 0 is J = [A I] with A = -[q - c]x, so
+      // J^T M J = [A^T M A, A^T M; M A, M] and J^T M r = [A^T M r; M r]: a third of the
+      // multiplications of the dense 3x6 product.
       const Eigen::Vector3d v = q - c;
-      Eigen::Matrix<double, 3, 6> J;
-      J << 0.0, v.z(), -v.y(), 1.0, 0.0, 0.0,
-          -v.z(), 0.0, v.x(), 0.0, 1.0, 0.0,
-          v.y(), -v.x(), 0.0, 0.0, 0.0, 1.0;
-      const Eigen::Matrix<double, 6, 3> JtM = J.transpose() * M;
-      H.noalias() += w * JtM * J;
-      g.noalias() += w * JtM * r;
+      Eigen::Matrix3d A;
+      A << 0.0, v.z(), -v.y(),
+          -v.z(), 0.0, v.x(),
+          v.y(), -v.x(), 0.0;
+      const Eigen::Matrix3d wMA = w * (M * A);
+      const Eigen::Vector3d wMr = w * (M * r);
+      H.topLeftCorner<3, 3>().noalias() += A.transpose() * wMA;
+      H.topRightCorner<3, 3>() += wMA.transpose();
+      H.bottomLeftCorner<3, 3>() += wMA;
+      H.bottomRightCorner<3, 3>() += w * M;
+      g.head<3>().noalias() += A.transpose() * wMr;
+      g.tail<3>() += wMr;
       sum_distance2 += r.squaredNorm();
       ++inliers;
     }
