@@ -905,6 +905,8 @@ struct Odometry::Impl {
   TargetCovariances merged_covariances;
   long merged_serial = -1;  ///< the newest cloud in it
   long serial = 0;          ///< the clouds added so far
+  /// RegistrationOptions::robust_scale2 as given, before settled_robust_scale2 replaces it.
+  double loose_robust_scale2 = 1.0;
 
   /// Rebuilds the target from `recent`: concatenation, no new covariances; the search
   /// tree is rebuilt once, here or on the next alignment. Merged (merge_m > 0): one point
@@ -960,6 +962,7 @@ Odometry::Odometry(const RegistrationOptions& options) : options_(options), impl
   }
   configure(impl_->gicp, options_);
   configure(impl_->icp, options_);
+  impl_->loose_robust_scale2 = options_.robust_scale2;
 }
 
 Odometry::~Odometry() = default;
@@ -1084,12 +1087,19 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     // steps shrink by only ~0.75x each (a cloud de-skewed with the wrong velocity has a
     // shallow minimum under the Cauchy loss); de-skewed with the measured velocity, the
     // second run's steps shrink by ~0.25x each (traced on seed 1, --accurate).
+    //
+    // The first run also keeps the loose Cauchy scale once the settled one has taken over
+    // (RegistrationOptions::settled_robust_scale2): under the tight scale it converged more
+    // slowly still. --accurate on seed 1: 14.3 against 18.7 steps per tilt; the 14 streets'
+    // mean anchored error 0.0291 m both (each street within 0.3 mm).
     std::vector<NearestKept> kept(robust ? centroids.points.size() : 0);
     bool coarse = robust;
+    RegistrationOptions coarse_options = options_;
+    coarse_options.robust_scale2 = m.loose_robust_scale2;
     auto run = [&](auto& icp, const Eigen::Isometry3d& guess, RegistrationResult& r) {
       if (robust) {
-        r = robust_gicp(*source, *source_covariances, *m.map, *m.map_tree, m.map_covariances, guess, options_, &kept,
-                        coarse);
+        r = robust_gicp(*source, *source_covariances, *m.map, *m.map_tree, m.map_covariances, guess,
+                        coarse ? coarse_options : options_, &kept, coarse);
         return;
       }
       icp.setInputSource(source);
