@@ -1084,9 +1084,9 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     // (--accurate 18.7 against 24.7), the 14 streets' mean 0.0769 against 0.0772 m
     // (--accurate 0.0291 m both).
     // Why the coarse run is worth stopping early: from the constant-velocity de-skew its
-    // steps shrink by only ~0.75x each (a cloud de-skewed with the wrong velocity has a
-    // shallow minimum under the Cauchy loss); de-skewed with the measured velocity, the
-    // second run's steps shrink by ~0.25x each (traced on seed 1, --accurate).
+    // steps shrink by only ~0.75x each; de-skewed with the measured velocity, the second
+    // run's steps shrink by ~0.25x each (traced on seed 1, --accurate; why the first run
+    // converges so slowly was not measured).
     //
     // The first run also keeps the loose Cauchy scale once the settled one has taken over
     // (RegistrationOptions::settled_robust_scale2): under the tight scale it converged more
