@@ -39,30 +39,68 @@ struct NearestKept {
   std::size_t nearest(const pcl::PointXYZ& query, float targets_moved_now, Search&& search, Position&& position) {
     const Eigen::Vector3f q = query.getVector3fMap();
     if (searched) {
-      const float others_at_least = dk - (q - at).norm() - (targets_moved_now - targets_moved);
-      std::size_t best = kNone;
-      float best_distance2 = std::numeric_limits<float>::infinity();
-      for (int c = 0; c < count; ++c) {
-        const float d2 = (position(candidates[c]) - q).squaredNorm();
-        if (d2 < best_distance2) {
-          best_distance2 = d2;
-          best = candidates[c];
-        }
-      }
-      if (count == 0 || (others_at_least > 0.0f && best_distance2 < others_at_least * others_at_least)) return best;
+      const std::size_t kept = proven(q, targets_moved_now, position);
+      if (kept != kUnproven) return kept;
     }
+    searched_now(query, targets_moved_now, search);
+    return count >= 1 ? candidates[0] : kNone;
+  }
+
+  static constexpr std::size_t kStale = kNone - 1;
+  /// As nearest, but `search` looks in a structure (a search tree) that holds the targets
+  /// as they were when their move bound was `built_moved` (read after `search` ran: it may
+  /// build the structure): its distances are to those places. The candidates' distances
+  /// are measured anew, and any other point is at least dk - (targets_moved_now -
+  /// built_moved) from the query now; when that does not tell the nearest, kStale: build
+  /// the structure anew and ask again. The answer is the one a fresh search would give.
+  template <typename Search, typename Position>
+  std::size_t nearest_in_stale(const pcl::PointXYZ& query, float targets_moved_now, Search&& search,
+                               Position&& position, const float& built_moved) {
+    const Eigen::Vector3f q = query.getVector3fMap();
+    if (searched) {
+      const std::size_t kept = proven(q, targets_moved_now, position);
+      if (kept != kUnproven) return kept;
+    }
+    searched_now(query, 0.0f, search);
+    targets_moved = built_moved;
+    if (built_moved == targets_moved_now) return count >= 1 ? candidates[0] : kNone;
+    const std::size_t found = proven(q, targets_moved_now, position);
+    return found != kUnproven ? found : kStale;
+  }
+
+ private:
+  static constexpr std::size_t kUnproven = kNone - 2;
+
+  /// The nearest candidate by the targets' places now, when the bound proves it the nearest
+  /// of all targets; kUnproven otherwise.
+  template <typename Position>
+  std::size_t proven(const Eigen::Vector3f& q, float targets_moved_now, Position&& position) const {
+    const float others_at_least = dk - (q - at).norm() - (targets_moved_now - targets_moved);
+    std::size_t best = kNone;
+    float best_distance2 = std::numeric_limits<float>::infinity();
+    for (int c = 0; c < count; ++c) {
+      const float d2 = (position(candidates[c]) - q).squaredNorm();
+      if (d2 < best_distance2) {
+        best_distance2 = d2;
+        best = candidates[c];
+      }
+    }
+    if (count == 0 || (others_at_least > 0.0f && best_distance2 < others_at_least * others_at_least)) return best;
+    return kUnproven;
+  }
+
+  template <typename Search>
+  void searched_now(const pcl::PointXYZ& query, float targets_moved_now, Search&& search) {
     std::vector<int>& found = scratch_index();
     std::vector<float>& distance2 = scratch_distance2();
     count = search(query, found, distance2, kCandidates);
     searched = true;
-    at = q;
+    at = query.getVector3fMap();
     targets_moved = targets_moved_now;
     for (int c = 0; c < count; ++c) candidates[c] = static_cast<std::size_t>(found[c]);
     dk = count == kCandidates ? std::sqrt(distance2[kCandidates - 1]) : std::numeric_limits<float>::infinity();
-    return count >= 1 ? candidates[0] : kNone;
   }
 
- private:
   static std::vector<int>& scratch_index() {
     thread_local std::vector<int> v(kCandidates);
     return v;

@@ -569,6 +569,11 @@ CurveResult solve_curve(const std::vector<CurveCloud>& clouds, const Eigen::Isom
     kept_fixed[i].resize(clouds[i].sensor.points.size());
   }
   std::vector<float> moved(n, 0.0f);  // per cloud, the sum over steps of its points' largest move
+  // Per cloud, a search tree of the other clouds, kept across the steps (built when a point
+  // first needs a search, and anew only when NearestKept cannot tell the nearest from it:
+  // the clouds move by millimetres per step after the first), and their move bound then.
+  std::vector<std::unique_ptr<MapTree>> others_tree(n);
+  std::vector<float> others_tree_moved(n, 0.0f);
   std::vector<XyzCloud::Ptr> previous;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const CurveCoefficients c = result.coefficients;
@@ -610,7 +615,7 @@ CurveResult solve_curve(const std::vector<CurveCloud>& clouds, const Eigen::Isom
     CurveNormalEquations normal;
     std::size_t inliers = 0;
     for (std::size_t i = 0; i < n; ++i) {
-      // The other clouds on the curve, in order: its tree is built when a point needs a search.
+      // The other clouds on the curve, in order (their tree: others_tree[i]).
       std::vector<std::size_t> offset(n, 0);
       std::size_t others_size = 0;
       float others_moved = 0.0f;  // a bound on how far any of their points moved since the first step
@@ -620,17 +625,17 @@ CurveResult solve_curve(const std::vector<CurveCloud>& clouds, const Eigen::Isom
         others_size += world[j]->size();
         others_moved += moved[j];
       }
-      std::unique_ptr<MapTree> tree;
       auto search_others = [&](const pcl::PointXYZ& query, std::vector<int>& index, std::vector<float>& distance2, int k) {
-        if (!tree) {
+        if (!others_tree[i]) {
           auto others = std::make_shared<XyzCloud>();
           for (std::size_t j = 0; j < n; ++j) {
             if (j != i) *others += *world[j];
           }
-          tree = std::make_unique<MapTree>();
-          tree->setInputCloud(others);
+          others_tree[i] = std::make_unique<MapTree>();
+          others_tree[i]->setInputCloud(others);
+          others_tree_moved[i] = others_moved;
         }
-        return tree->nearestKSearch(query, k, index, distance2);
+        return others_tree[i]->nearestKSearch(query, k, index, distance2);
       };
       auto owner = [&](std::size_t k) {  // (cloud, point) of a point of `others`
         std::size_t j = 0;
@@ -644,7 +649,13 @@ CurveResult solve_curve(const std::vector<CurveCloud>& clouds, const Eigen::Isom
           const auto [j, q] = owner(k);
           return (*world[j])[q].getVector3fMap();
         };
-        const std::size_t k = kept_others[i][p].nearest(query, others_moved, search_others, others_position);
+        std::size_t k = kept_others[i][p].nearest_in_stale(query, others_moved, search_others, others_position,
+                                                           others_tree_moved[i]);
+        if (k == NearestKept::kStale) {  // the tree is too old to tell: build it anew
+          others_tree[i].reset();
+          k = kept_others[i][p].nearest_in_stale(query, others_moved, search_others, others_position,
+                                                 others_tree_moved[i]);
+        }
         if (k != NearestKept::kNone) {
           const auto [j, q] = owner(k);
           const Eigen::Vector3d r = (query.getVector3fMap() - (*world[j])[q].getVector3fMap()).cast<double>();
