@@ -37,13 +37,8 @@ struct NearestKept {
   /// point as it is now.
   template <typename Search, typename Position>
   std::size_t nearest(const pcl::PointXYZ& query, float targets_moved_now, Search&& search, Position&& position) {
-    const Eigen::Vector3f q = query.getVector3fMap();
-    if (searched) {
-      const std::size_t kept = proven(q, targets_moved_now, position);
-      if (kept != kUnproven) return kept;
-    }
-    searched_now(query, targets_moved_now, search);
-    return count >= 1 ? candidates[0] : kNone;
+    // A structure that holds the targets as they are now is never stale.
+    return nearest_in_stale(query, targets_moved_now, search, position, targets_moved_now);
   }
 
   static constexpr std::size_t kStale = kNone - 1;
@@ -61,7 +56,7 @@ struct NearestKept {
       const std::size_t kept = proven(q, targets_moved_now, position);
       if (kept != kUnproven) return kept;
     }
-    searched_now(query, 0.0f, search);
+    searched_now(query, search);
     targets_moved = built_moved;
     if (built_moved == targets_moved_now) return count >= 1 ? candidates[0] : kNone;
     const std::size_t found = proven(q, targets_moved_now, position);
@@ -90,13 +85,12 @@ struct NearestKept {
   }
 
   template <typename Search>
-  void searched_now(const pcl::PointXYZ& query, float targets_moved_now, Search&& search) {
+  void searched_now(const pcl::PointXYZ& query, Search&& search) {
     std::vector<int>& found = scratch_index();
     std::vector<float>& distance2 = scratch_distance2();
     count = search(query, found, distance2, kCandidates);
     searched = true;
     at = query.getVector3fMap();
-    targets_moved = targets_moved_now;
     for (int c = 0; c < count; ++c) candidates[c] = static_cast<std::size_t>(found[c]);
     dk = count == kCandidates ? std::sqrt(distance2[kCandidates - 1]) : std::numeric_limits<float>::infinity();
   }

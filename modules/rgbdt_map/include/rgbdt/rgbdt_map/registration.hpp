@@ -42,9 +42,10 @@ struct RegistrationOptions {
   double robust_scale2 = 1.0;
   /// 0 (off) or > 0: once settled_from_cloud clouds have come, robust_scale2 (the Cauchy scale
   /// of kRobust and of the smooth-curve solves) tightens to this for every later registration
-  /// and window (but for each tilt's first, de-skew-setting run, which keeps the loose one:
-  /// it converges faster so, see Odometry::add). The first tilts need the loose scale: their de-skew is guessed and
-  /// the local map is one or two tilts, so their residuals are larger than the LIDAR's noise.
+  /// and window, but for each tilt's first run, which only sets the de-skew and converges
+  /// faster with the loose scale (Odometry::add). The first tilts need the loose scale: their
+  /// de-skew is guessed and the local map is one or two tilts, so their residuals are larger
+  /// than the LIDAR's noise.
   /// Once the map has formed, the tighter scale measured better: with the loose one the
   /// registration carries a pitch bias (CONTRIBUTING.md, session 10; its cause is not
   /// measured). On the 14 LIDAR-only 100 m sim streets of CONTRIBUTING.md,
