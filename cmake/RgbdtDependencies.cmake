@@ -9,6 +9,8 @@ find_package(Ceres 2 REQUIRED)
 find_package(MPI COMPONENTS C)
 find_package(PCL 1.12 REQUIRED COMPONENTS common io search kdtree sample_consensus segmentation filters features registration)
 find_package(octomap REQUIRED)
+# Header-only k-d tree for rgbdt_map's registration (also a dependency of MRPT's math).
+find_package(nanoflann REQUIRED)
 find_package(mrpt-hwdrivers QUIET)
 find_package(mrpt-obs QUIET)
 find_package(mrpt-maps QUIET)

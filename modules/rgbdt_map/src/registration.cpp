@@ -6,8 +6,6 @@
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/registration/gicp.h>
 #include <pcl/registration/icp.h>
-#include <pcl/kdtree/kdtree_flann.h>
-#include <pcl/search/kdtree.h>
 
 #include <algorithm>
 #include <array>
@@ -21,6 +19,7 @@
 
 #include "rgbdt/core/transform.hpp"
 #include "nearest_kept.hpp"
+#include "point_tree.hpp"
 
 namespace rgbdt::rgbdt_map {
 namespace {
@@ -43,7 +42,7 @@ class Counted : public Base {
   int iterations() const { return this->nr_iterations_; }
 };
 
-using MapTree = pcl::KdTreeFLANN<pcl::PointXYZ>;
+using MapTree = detail::PointTree;
 
 /// PCL's GICP, whose per-point covariances Odometry estimates once and reuses.
 class CovarianceGicp : public Counted<Gicp> {

@@ -2,6 +2,7 @@
 
 #include <pcl/kdtree/kdtree_flann.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <memory>
 #include <random>
@@ -14,6 +15,7 @@
 #include "rgbdt/test/test_util.hpp"
 #include "synthetic_scene.hpp"
 #include "../src/nearest_kept.hpp"  // internal to the module
+#include "../src/point_tree.hpp"
 
 using namespace rgbdt;
 using namespace rgbdt::rgbdt_map;
@@ -419,6 +421,53 @@ KeptRun run_nearest_kept(Move&& move, bool stale = false) {
 }
 
 }  // namespace
+
+// PointTree (nanoflann) in place of PCL's KdTreeFLANN: the exact k nearest, nearest first,
+// as a search of every point finds them and as PCL's tree does (random points: no ties).
+TEST(PointTree, FindsTheExactNearestAsEveryPointSearchedAndPclsTree) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> coordinate(-20.0f, 20.0f);
+  auto cloud = std::make_shared<XyzCloud>();
+  for (int i = 0; i < 3000; ++i) cloud->push_back(pcl::PointXYZ(coordinate(rng), coordinate(rng), 0.1f * coordinate(rng)));
+  detail::PointTree tree;
+  tree.setInputCloud(cloud);
+  pcl::KdTreeFLANN<pcl::PointXYZ> pcl_tree;
+  pcl_tree.setInputCloud(cloud);
+  std::vector<int> index, pcl_index;
+  std::vector<float> distance2, pcl_distance2;
+  int differ_from_pcl = 0, wrong = 0;
+  for (int q = 0; q < 300; ++q) {
+    const pcl::PointXYZ query(coordinate(rng), coordinate(rng), coordinate(rng));
+    std::vector<std::pair<float, int>> all;
+    for (std::size_t i = 0; i < cloud->size(); ++i) {
+      all.emplace_back(((*cloud)[i].getVector3fMap() - query.getVector3fMap()).squaredNorm(), static_cast<int>(i));
+    }
+    std::sort(all.begin(), all.end());
+    for (int k : {1, 4, 20}) {
+      ASSERT_EQ(tree.nearestKSearch(query, k, index, distance2), k);
+      ASSERT_EQ(pcl_tree.nearestKSearch(query, k, pcl_index, pcl_distance2), k);
+      for (int j = 0; j < k; ++j) {
+        const auto jj = static_cast<std::size_t>(j);
+        if (index[jj] != all[jj].second || std::abs(distance2[jj] - all[jj].first) > 1e-6f * (1.0f + all[jj].first)) {
+          ++wrong;
+        }
+        if (index[jj] != pcl_index[jj]) ++differ_from_pcl;
+      }
+    }
+  }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(differ_from_pcl, 0);
+  // Fewer points than asked for: all of them; none in an empty cloud or with no cloud.
+  auto five = std::make_shared<XyzCloud>(*cloud);
+  five->resize(5);
+  tree.setInputCloud(five);
+  EXPECT_EQ(tree.nearestKSearch(pcl::PointXYZ(0, 0, 0), 20, index, distance2), 5);
+  EXPECT_TRUE(std::is_sorted(distance2.begin(), distance2.begin() + 5));
+  tree.setInputCloud(std::make_shared<XyzCloud>());
+  EXPECT_EQ(tree.nearestKSearch(pcl::PointXYZ(0, 0, 0), 4, index, distance2), 0);
+  detail::PointTree unset;
+  EXPECT_EQ(unset.nearestKSearch(pcl::PointXYZ(0, 0, 0), 4, index, distance2), 0);
+}
 
 // NearestKept must answer as a fresh search of the targets as they are now would.
 TEST(NearestKept, AnswersAsAFreshSearchWouldWhilePointsMove) {
