@@ -18,7 +18,7 @@ namespace rgbdt::rgbdt_map::detail {
 /// (61k points, 5k queries), leaves of 16 took 0.7x FLANN's time to find 4 neighbours,
 /// 0.9x to find 20, and 0.9x to build (leaves of 10 or 24: within 1.5 % of 16's instructions
 /// in `--accurate` Odometry). Odometry's instructions over seed 1's first 40 tilts
-/// (`--accurate`, callgrind): 0.82x.
+/// (`--accurate`, callgrind): 0.82x. rgbdt_map_bench prints both trees on its merged map.
 class PointTree {
  public:
   using Cloud = pcl::PointCloud<pcl::PointXYZ>;
