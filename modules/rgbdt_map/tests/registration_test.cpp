@@ -373,11 +373,12 @@ KeptRun run_nearest_kept(Move&& move, bool stale = false) {
   std::vector<detail::NearestKept> kept(queries.size());
   float targets_moved = 0.0f;  // the bound NearestKept is given: the sum of each step's largest move
   KeptRun run;
-  // The tree holds a copy of the targets as they were when built, with the bound then.
-  std::unique_ptr<pcl::KdTreeFLANN<pcl::PointXYZ>> tree;
+  // The tree (registration's own) holds a copy of the targets as they were when built, with
+  // the bound then.
+  std::unique_ptr<detail::PointTree> tree;
   float tree_moved = 0.0f;
   auto build = [&] {
-    tree = std::make_unique<pcl::KdTreeFLANN<pcl::PointXYZ>>();
+    tree = std::make_unique<detail::PointTree>();
     tree->setInputCloud(std::make_shared<XyzCloud>(*targets));
     tree_moved = targets_moved;
     ++run.builds;
