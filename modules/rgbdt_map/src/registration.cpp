@@ -276,14 +276,18 @@ core::Vector6d twist_between(const TimedPose& a, const TimedPose& b) {
 /// correspondence under C_target + R C_source R^T), minimised by Gauss-Newton with a Cauchy
 /// weight 1 / (1 + d^2 / robust_scale2) and the correspondences renewed every step.
 /// Steps are taken about the source's origin (the sensor), where rotation and translation
-/// are least coupled. Converged when a step moves less than 1/10 of translation_epsilon_m
-/// and turns less than 1/100 of rotation_epsilon_rad (0.01 mm and 1e-6 rad by default: a
-/// Gauss-Newton step costs one pass, so the tail is cheap), or when the pose comes back to
-/// where it was 2-4 steps before, every step since below the epsilons themselves (the
-/// correspondences cycle). target_tree holds `target`. kept (optional): the neighbours of
-/// `source`'s points as an earlier run on the same target left them (the points may have
-/// moved since: NearestKept measures). coarse: stop at 100x the tail test's thresholds (1 mm
-/// and 1e-4 rad), for a run whose pose only sets the de-skew of the next.
+/// are least coupled. Converged when a step moves less than translation_epsilon_m and turns
+/// less than 1/10 of rotation_epsilon_rad (0.1 mm and 1e-5 rad by default), or when the pose
+/// comes back to where it was 2-4 steps before, every step since below the epsilons
+/// themselves (the correspondences cycle). Steps shrink by ~0.25x each near the minimum, so
+/// a 0.1 mm step leaves ~0.03 mm to go. Until session 16 the test was 10x tighter (0.01 mm,
+/// 1e-6 rad): on the 14 sim streets of CONTRIBUTING.md that took 13 % (default) and 16 %
+/// (--accurate) more Gauss-Newton steps per tilt for the same trajectories (each street's
+/// anchored error within 1.4 mm, --accurate within 0.3 mm; 30x looser moved one street by
+/// 2.5 mm). target_tree holds `target`. kept (optional): the neighbours of `source`'s points
+/// as an earlier run on the same target left them (the points may have moved since:
+/// NearestKept measures). coarse: stop at 10x the tail test's thresholds (1 mm and 1e-4
+/// rad), for a run whose pose only sets the de-skew of the next.
 RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source_covariances,
                                const XyzCloud& target, const MapTree& target_tree,
                                const TargetCovariances& target_covariances, const Eigen::Isometry3d& guess,
@@ -310,9 +314,9 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
   constexpr std::size_t kCycleLength = 4;
   std::vector<Visited> recent{{guess, false}};
   // The tail test: a move this small is no move at all.
-  const double tail = coarse ? 100.0 : 1.0;
+  const double tail = coarse ? 10.0 : 1.0;
   auto settled = [&options, tail](double translation_m, double angle_rad) {
-    return translation_m < tail * 0.1 * options.translation_epsilon_m && angle_rad < tail * 0.01 * options.rotation_epsilon_rad;
+    return translation_m < tail * options.translation_epsilon_m && angle_rad < tail * 0.1 * options.rotation_epsilon_rad;
   };
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T.translation();
@@ -1126,9 +1130,10 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   } else if (m.map && !m.map->empty()) {
     // Ours: the first run only sets the de-skew of the second, so it stops at a coarser
     // tail; both runs share the neighbours found (NearestKept measures how far the second
-    // de-skew moved each point). Stopping it at 10x the full tail took 16 % fewer
-    // Gauss-Newton steps on sim street seed 1 (mean anchored error on the 14 streets of
-    // CONTRIBUTING.md 0.0771 -> 0.0772 m); at 100x, 12.0 steps per tilt against 14.8 at 10x
+    // de-skew moved each point). Measured while the full tail was 10x tighter than it is
+    // now (robust_gicp): stopping it at 10x that tail took 16 % fewer Gauss-Newton steps on
+    // sim street seed 1 (mean anchored error on the 14 streets of CONTRIBUTING.md 0.0771 ->
+    // 0.0772 m); at 100x (1 mm, 1e-4 rad, as now), 12.0 steps per tilt against 14.8 at 10x
     // (--accurate 18.7 against 24.7), the 14 streets' mean 0.0769 against 0.0772 m
     // (--accurate 0.0291 m both).
     // Why the coarse run is worth stopping early: from the constant-velocity de-skew its
