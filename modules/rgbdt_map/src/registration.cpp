@@ -319,22 +319,30 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
     return translation_m < tail * options.translation_epsilon_m && angle_rad < tail * 0.1 * options.rotation_epsilon_rad;
   };
   // Each correspondence's information matrix M = (C_target + R C_source R^T)^-1, kept while
-  // the point's nearest target point stays the same (most of the steps after the first few),
-  // with R the guess's rotation (as solve_curve does): the run turns the cloud too little to
-  // change the covariances that matter. On the 14 sim streets --accurate moved each street's
-  // anchored error by <= 0.8 mm (mean 0.0291 -> 0.0290 m) for 3.2 % fewer instructions, the
-  // default 5.1 % fewer (callgrind, seed 1, 40 tilts). The default's streets moved by up to
-  // 8.5 cm each way (mean 0.0768 -> 0.0757 m): its poses carry 0.1-0.4 deg of attitude noise
-  // from tilt to tilt, and the mean pitch they wander to sets its anchored error (seed 7:
-  // 0.18 deg before, 0.09 deg after; CONTRIBUTING.md, session 16).
+  // the point's nearest target point stays the same (most of the steps after the first few)
+  // and the cloud has turned by less than kKeepInformationRad since the kept ones were made:
+  // then R C_source R^T has moved by <= 0.1 % of its in-plane spread (the normal's variance,
+  // 0.001, is 1/1000 of it). Beyond that all are made anew with the current R, so a guess
+  // degrees off (a standalone register_clouds) still ends on the covariances of its answer.
+  // callgrind (seed 1, 40 tilts): 3.4 % fewer instructions in the default, 2.0 % in
+  // --accurate. The 14 sim streets: the default's anchored error each within 2.9 mm (mean
+  // 0.0768 -> 0.0769 m), --accurate's within 0.3 mm but seed 7's, 2.9 mm (mean 0.0291 ->
+  // 0.0293 m). Kept with the guess's rotation throughout (as solve_curve places its
+  // covariances) instead, the default's streets moved by up to 8.5 cm each way.
+  constexpr double kKeepInformationRad = 1e-3;
   struct KeptInformation {
     std::size_t j = NearestKept::kNone;  ///< the target point M was made with
     Eigen::Matrix3d M;
   };
   std::vector<KeptInformation> information(source.size());
-  const Eigen::Matrix3d R_guess = guess.linear();
+  Eigen::Matrix3d R_kept = guess.linear();  ///< the rotation the kept M were made with
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T.translation();
+    const Eigen::Matrix3d R = T.linear();
+    if (Eigen::AngleAxisd(R_kept.transpose() * R).angle() > kKeepInformationRad) {
+      for (KeptInformation& k : information) k.j = NearestKept::kNone;
+      R_kept = R;
+    }
     Eigen::Matrix<double, 6, 6> H = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
     double sum_distance2 = 0.0;
@@ -355,7 +363,7 @@ RegistrationResult robust_gicp(const XyzCloud& source, const Covariances& source
       KeptInformation& kept_M = information[i];
       if (kept_M.j != j) {
         kept_M.j = j;
-        kept_M.M = (target_covariances[j] + R_guess * source_covariances[i] * R_guess.transpose()).inverse();
+        kept_M.M = (target_covariances[j] + R_kept * source_covariances[i] * R_kept.transpose()).inverse();
       }
       const Eigen::Matrix3d& M = kept_M.M;
       const double w = 1.0 / (1.0 + r.dot(M * r) / options.robust_scale2);
