@@ -15,9 +15,10 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <optional>
 #include <vector>
+
+#include <CLI/CLI.hpp>
 
 #include "../tests/synthetic_views.hpp"
 #include "rgbdt/extrinsics/edge_alignment.hpp"
@@ -88,26 +89,14 @@ Outcome run(const std::vector<ext::TargetView>& views, const rgbdt::core::Pinhol
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, ours_only = false;  // --ours-only: skip the paper's method (profiling)
-  for (int a = 1; a < argc; ++a) {
-    const bool help = std::strcmp(argv[a], "--help") == 0 || std::strcmp(argv[a], "-h") == 0;
-    if (std::strcmp(argv[a], "--quick") == 0) {
-      quick = true;
-    } else if (std::strcmp(argv[a], "--ours-only") == 0) {
-      ours_only = true;
-    } else {
-      if (!help) std::fprintf(stderr, "extrinsics_bench: unknown argument '%s'\n", argv[a]);
-      std::fprintf(help ? stdout : stderr,
-                   "extrinsics_bench: the paper's Table 1 (Sec. 4.2) for our edge alignment and the paper's, in one\n"
-                   "run: 8 simulated views of a circle target, T_camera_lidar recovered from each initial offset of\n"
-                   "Table 1, from wider offsets and from no guess; prints errors (deg, cm) and time per solve.\n"
-                   "Usage: %s [--quick] [--ours-only]\n"
-                   "  --quick      every fourth row only (a smoke run)\n"
-                   "  --ours-only  skip the paper's method (for profiling ours; the speed-up is then meaningless)\n",
-                   argv[0]);
-      return help ? 0 : 2;
-    }
-  }
+  CLI::App app{
+      "extrinsics_bench: the paper's Table 1 (Sec. 4.2) for our edge alignment and the paper's, in one\n"
+      "run: 8 simulated views of a circle target, T_camera_lidar recovered from each initial offset of\n"
+      "Table 1, from wider offsets and from no guess; prints errors (deg, cm) and time per solve."};
+  bool quick = false, ours_only = false;
+  app.add_flag("--quick", quick, "every fourth row only (a smoke run)");
+  app.add_flag("--ours-only", ours_only, "skip the paper's method (for profiling ours; the speed-up is then meaningless)");
+  CLI11_PARSE(app, argc, argv);
   const rgbdt::core::PinholeCamera camera(t::table1_intrinsics());
   const Eigen::Isometry3d truth = t::true_T_camera_lidar();
   const auto views = t::make_views(camera, truth, t::table1_placements());

@@ -9,7 +9,6 @@
 //        rgbdt_map_bench --session-memory [--quick]   (part 3 alone; part of the run above)
 #include <chrono>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -28,6 +27,7 @@
 #include "synthetic_scene.hpp"
 #include "../src/point_tree.hpp"  // internal to the module
 
+#include <CLI/CLI.hpp>
 #include <pcl/common/transforms.h>
 #include <pcl/kdtree/kdtree_flann.h>
 
@@ -152,29 +152,17 @@ int session_memory(bool quick) {
 }
 
 int main(int argc, char** argv) {
+  CLI::App app{
+      "rgbdt_map_bench: the mapping targets of issue #7 in one run, printed as a table:\n"
+      "  1. one 600 ms tilt (>= 26k points) with an RGB and a thermal image, coloured and registered\n"
+      "     on one core (target < 60 ms), beside PCL's GICP and ICP and MRPT's CICP;\n"
+      "  2. a 1.2 M-point map to OctoMap at 5 cm by ray insertion (target < 5 s);\n"
+      "  3. the peak memory of a 10 M-point session (target < 1 GB).\n"
+      "Times are the CPU time of one thread. The trajectory error on the 100 m sim street: rgbdt_map_drift."};
   bool quick = false, session_only = false;
-  for (int i = 1; i < argc; ++i) {
-    const bool help = std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0;
-    if (std::strcmp(argv[i], "--quick") == 0) {
-      quick = true;
-    } else if (std::strcmp(argv[i], "--session-memory") == 0) {
-      session_only = true;
-    } else {
-      if (!help) std::fprintf(stderr, "rgbdt_map_bench: unknown argument '%s'\n", argv[i]);
-      std::fprintf(help ? stdout : stderr,
-                   "rgbdt_map_bench: the mapping targets of issue #7 in one run, printed as a table:\n"
-                   "  1. one 600 ms tilt (>= 26k points) with an RGB and a thermal image, coloured and registered\n"
-                   "     on one core (target < 60 ms), beside PCL's GICP and ICP and MRPT's CICP;\n"
-                   "  2. a 1.2 M-point map to OctoMap at 5 cm by ray insertion (target < 5 s);\n"
-                   "  3. the peak memory of a 10 M-point session (target < 1 GB).\n"
-                   "Times are the CPU time of one thread. The trajectory error on the 100 m sim street: rgbdt_map_drift.\n"
-                   "Usage: %s [--quick] [--session-memory]\n"
-                   "  --quick           smaller sizes, for a smoke run\n"
-                   "  --session-memory  part 3 alone\n",
-                   argv[0]);
-      return help ? 0 : 2;
-    }
-  }
+  app.add_flag("--quick", quick, "smaller sizes, for a smoke run");
+  app.add_flag("--session-memory", session_only, "part 3 alone");
+  CLI11_PARSE(app, argc, argv);
   if (session_only) return session_memory(quick);
   const test::Scene scene = test::structured_scene();
   test::TiltScanOptions scan;
