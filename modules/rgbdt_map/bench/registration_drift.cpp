@@ -24,6 +24,10 @@
 // so that one run shows what each mode's accuracy costs on the street itself.
 // Usage: rgbdt_map_drift [--seeds N] [--duration S] [--dir DIR]
 //   sessions are written to DIR/seed<k> (default <tmp>/rgbdt_map_drift) and reused.
+//        rgbdt_map_drift --session DIR
+//   the same six modes on one session of assembled clouds with a ground truth
+//   (DIR/clouds/index.csv, DIR/ground_truth/trajectory.csv), e.g. the bench's yard from
+//   rgbdt_map_bench --write-session DIR.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -139,6 +143,7 @@ int main(int argc, char** argv) {
   int seeds = 7;
   double duration_s = 80.0;
   fs::path dir = fs::temp_directory_path() / "rgbdt_map_drift";
+  fs::path one_session;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     if (arg == "--seeds" && i + 1 < argc) {
@@ -147,14 +152,28 @@ int main(int argc, char** argv) {
       duration_s = std::atof(argv[++i]);
     } else if (arg == "--dir" && i + 1 < argc) {
       dir = argv[++i];
+    } else if (arg == "--session" && i + 1 < argc) {
+      one_session = argv[++i];
     } else {
       std::printf(
           "rgbdt_map_drift: registration drift on LIDAR-only sim streets, several seeds, six modes of\n"
           "guess and registration (see the top of bench/registration_drift.cpp).\n"
-          "Usage: %s [--seeds N (7)] [--duration S (80, the issue's 100 m at 1.25 m/s)] [--dir DIR]\n",
-          argv[0]);
+          "Usage: %s [--seeds N (7)] [--duration S (80, the issue's 100 m at 1.25 m/s)] [--dir DIR]\n"
+          "       %s --session DIR   (one session of clouds with ground truth: DIR/clouds/index.csv and\n"
+          "                            DIR/ground_truth/trajectory.csv, e.g. rgbdt_map_bench --write-session)\n",
+          argv[0], argv[0]);
       return arg == "--help" || arg == "-h" ? 0 : 2;
     }
+  }
+  if (!one_session.empty()) {
+    for (const char* part : {"clouds/index.csv", "ground_truth/trajectory.csv"}) {
+      if (!fs::exists(one_session / part)) {
+        std::fprintf(stderr, "rgbdt_map_drift: --session %s: no %s there (expected a session of clouds with ground truth)\n",
+                     one_session.c_str(), part);
+        return 2;
+      }
+    }
+    seeds = 1;
   }
   if (seeds < 1 || !(duration_s > 5.0)) {
     std::fprintf(stderr, "rgbdt_map_drift: --seeds %d, --duration %g: expected >= 1 and > 5 s\n", seeds, duration_s);
@@ -172,7 +191,7 @@ int main(int argc, char** argv) {
   double sweep_sum[2] = {}, sweep_sum2[2] = {};
   int sweep_n[2] = {};
   for (int seed = 1; seed <= seeds; ++seed) {
-    const fs::path session = dir / ("seed" + std::to_string(seed));
+    const fs::path session = one_session.empty() ? dir / ("seed" + std::to_string(seed)) : one_session;
     if (!fs::exists(session / "ground_truth" / "trajectory.csv")) {
       std::printf("[simulating seed %d: %.0f s street, LIDAR only]\n", seed, duration_s);
       std::fflush(stdout);

@@ -7,8 +7,10 @@
 //   3. peak RSS of a 10 M-point session (all the mapper keeps): target < 1 GB.
 // Usage: rgbdt_map_bench [--quick]   (--quick: smaller sizes, for a smoke run)
 //        rgbdt_map_bench --session-memory [--quick]   (part 3 alone; part of the run above)
+//        rgbdt_map_bench --write-session DIR [--quick]   (the registration rows' tilts as a session)
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +22,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "rgbdt/cloud/pcd_io.hpp"
+#include "rgbdt/core/time_index.hpp"
 #include "rgbdt/core/transform.hpp"
 #include "rgbdt/rgbdt_map/colorize.hpp"
 #include "rgbdt/rgbdt_map/export.hpp"
@@ -163,8 +167,13 @@ int main(int argc, char** argv) {
       "on a long session (median and worst; the one-off start-up and re-anchoring tilts apart), over 31\n"
       "tilts of a synthetic yard. The trajectory error on the 100 m sim street: rgbdt_map_drift."};
   bool quick = false, session_only = false;
+  std::string write_session;
   app.add_flag("--quick", quick, "smaller sizes, for a smoke run");
   app.add_flag("--session-memory", session_only, "part 3 alone");
+  app.add_option("--write-session", write_session,
+                 "write the registration rows' tilts and their true motion as a session into DIR (clouds/ and\n"
+                 "ground_truth/trajectory.csv), for rgbdt_map_drift --session DIR, and stop")
+      ->type_name("DIR");
   CLI11_PARSE(app, argc, argv);
   if (session_only) return session_memory(quick);
   const test::Scene scene = test::structured_scene();
@@ -236,6 +245,26 @@ int main(int argc, char** argv) {
     const double t0 = 0.75 * k;
     sequence_tilts.push_back(test::scan_tilt(scene, scan, [&](double t) { return cart_at(t0 + t); }));
     truth.push_back({t0, cart_at(t0)});
+  }
+  if (!write_session.empty()) {
+    // Clouds as an assembled session holds them (design.md), the truth at 100 Hz.
+    const std::filesystem::path dir(write_session);
+    std::filesystem::create_directories(dir / "clouds");
+    std::filesystem::create_directories(dir / "ground_truth");
+    std::vector<core::TimedFile> index;
+    char name[32];
+    for (int k = 0; k < odometry_tilts; ++k) {
+      std::snprintf(name, sizeof name, "%05d.pcd", k);
+      cloud::save_pcd((dir / "clouds" / name).string(), sequence_tilts[static_cast<std::size_t>(k)]);
+      index.push_back({0.75 * k, (dir / "clouds" / name).string()});
+    }
+    core::write_time_index((dir / "clouds" / "index.csv").string(), index);
+    Trajectory motion;
+    const int samples = static_cast<int>(std::ceil(0.75 * odometry_tilts * 100.0));
+    for (int i = 0; i <= samples; ++i) motion.push_back({0.01 * i, cart_at(0.01 * i)});
+    write_trajectory_csv((dir / "ground_truth" / "trajectory.csv").string(), motion);
+    std::printf("wrote %d tilts and their true motion to %s\n", odometry_tilts, dir.c_str());
+    return 0;
   }
   auto run_odometry = [&](IcpBackend backend, bool accurate = false) {
     RegistrationOptions options = accurate ? RegistrationOptions::accurate() : RegistrationOptions{};
