@@ -147,6 +147,9 @@ struct TiltScanOptions {
   double range_max_m = 30.0;
   double range_noise_m = 0.0;
   unsigned seed = 1;
+  /// false: the tilt sweeps from tilt_min_rad (up) to tilt_max_rad (down); true: back up, as
+  /// every other tilt of a tilt motor that sweeps to and fro.
+  bool upward = false;
 };
 
 /// One tilt as the assembler delivers it. `pose_at(t)` gives T_world_lidar at time t (from
@@ -165,8 +168,9 @@ inline cloud::Cloud scan_tilt(const Scene& scene_world, const TiltScanOptions& o
   for (int s = 0; s < o.scans; ++s) {
     for (int i = 0; i < o.beams; ++i) {
       const double t = s * o.scan_period_s + i * o.scan_period_s / o.steps;
-      const double phi = o.tilt_min_rad + (o.tilt_max_rad - o.tilt_min_rad) *
-                                              (s * o.beams + i) / static_cast<double>(o.scans * o.beams);
+      const double swept = (s * o.beams + i) / static_cast<double>(o.scans * o.beams);
+      const double phi = o.upward ? o.tilt_max_rad - (o.tilt_max_rad - o.tilt_min_rad) * swept
+                                  : o.tilt_min_rad + (o.tilt_max_rad - o.tilt_min_rad) * swept;
       const double theta = -0.5 * o.aperture_rad + o.aperture_rad * i / (o.beams - 1);
       const Eigen::Vector3d dir_lidar =
           Eigen::AngleAxisd(phi, Eigen::Vector3d::UnitY()) * Eigen::Vector3d(std::cos(theta), std::sin(theta), 0);
