@@ -350,7 +350,10 @@ int main(int argc, char** argv) {
                                     {"MRPT CICP (3D classic)", {}, {}, {}}, {"ours (GICP cost, Cauchy loss)", {}, {}, {}}};
   const double voxel_m = RegistrationOptions{}.source_voxel_m;
   auto world_cloud = [&](int k) {
-    const Eigen::Isometry3d velocity = core::from_vector6(core::to_vector6(cart_at(0.0).inverse() * cart_at(1.0)));
+    // The LIDAR's motion over one second from the tilt's start, in its own frame (the cart
+    // yaws, so it differs from tilt to tilt).
+    const double t0 = 0.75 * k;
+    const Eigen::Isometry3d velocity = core::from_vector6(core::to_vector6(cart_at(t0).inverse() * cart_at(t0 + 1.0)));
     auto local = downsample(*deskew(sequence_tilts[k], velocity, 0.5, 40.0), voxel_m);
     auto world = std::make_shared<XyzCloud>();
     pcl::transformPointCloud(*local, *world, cart_at(0.75 * k).matrix().cast<float>());
