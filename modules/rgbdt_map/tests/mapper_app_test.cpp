@@ -150,6 +150,20 @@ TEST(MapperApp, MapsASimulatedSessionIntoEveryOutputFile) {
   const auto rgb_at = json.find("\"rgb\"");
   ASSERT_NE(rgb_at, std::string::npos);
   EXPECT_GT(json_value(json.substr(rgb_at), "colored_fraction_in_view"), 0.9) << json;
+  // The colour stage's parts add up to it (each printed to 6 digits), and reading the
+  // recorded images is told apart from colouring.
+  const auto parts_at = json.find("\"colorize_and_map_parts_s\"");
+  ASSERT_NE(parts_at, std::string::npos) << json;
+  const std::string parts = json.substr(parts_at);
+  const double stage_s = json_value(json, "colorize_and_map");
+  double sum_s = 0.0;
+  for (const char* part : {"image_decode", "thermal_truth_check", "voxel_map", "colour"}) {
+    const double s = json_value(parts, part);
+    EXPECT_GE(s, 0.0) << part << " in " << parts;
+    sum_s += s;
+  }
+  EXPECT_NEAR(sum_s, stage_s, 1e-4 + 1e-5 * stage_s) << json;
+  EXPECT_GT(json_value(parts, "image_decode"), 0.0) << json;
 
   // Every file reads back; temperatures in the map are those of the surfaces they lie on.
   const auto points = read_ply((dir / "out/map.ply").string());
