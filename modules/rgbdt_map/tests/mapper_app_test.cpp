@@ -164,6 +164,10 @@ TEST(MapperApp, MapsASimulatedSessionIntoEveryOutputFile) {
   }
   EXPECT_NEAR(sum_s, stage_s, 1e-4 + 1e-5 * stage_s) << json;
   EXPECT_GT(json_value(parts, "image_decode"), 0.0) << json;
+  // ... and the log ends with the rate a user compares with the rig's.
+  std::ifstream log_in(dir / "log.txt");
+  const std::string log((std::istreambuf_iterator<char>(log_in)), {});
+  EXPECT_NE(log.find("faster than the tilts came"), std::string::npos) << log;
 
   // Every file reads back; temperatures in the map are those of the surfaces they lie on.
   const auto points = read_ply((dir / "out/map.ply").string());
