@@ -22,8 +22,9 @@
 // mostly the first pose's share of it, times the distance travelled), and the registration's
 // CPU time per tilt (Odometry::add alone, on this thread: reading the clouds is not counted),
 // so that one run shows what each mode's accuracy costs on the street itself.
-// Usage: rgbdt_map_drift [--seeds N] [--duration S] [--dir DIR]
-//   sessions are written to DIR/seed<k> (default <tmp>/rgbdt_map_drift) and reused.
+// Usage: rgbdt_map_drift [--seeds N] [--first-seed K] [--duration S] [--dir DIR]
+//   sessions are written to DIR/seed<k> (default <tmp>/rgbdt_map_drift) and reused; seeds K
+//   to K + N - 1 (K = 1), so that a choice made on seeds 1-14 can be checked on 15-28.
 //        rgbdt_map_drift --session DIR
 //   the same six modes on one session of assembled clouds with a ground truth
 //   (DIR/clouds/index.csv, DIR/ground_truth/trajectory.csv), e.g. the bench's yard from
@@ -141,6 +142,7 @@ Row run(const fs::path& session, const Trajectory& truth, const Trajectory* prio
 
 int main(int argc, char** argv) {
   int seeds = 7;
+  int first_seed = 1;
   double duration_s = 80.0;
   fs::path dir = fs::temp_directory_path() / "rgbdt_map_drift";
   fs::path one_session;
@@ -148,6 +150,8 @@ int main(int argc, char** argv) {
     const std::string arg = argv[i];
     if (arg == "--seeds" && i + 1 < argc) {
       seeds = std::atoi(argv[++i]);
+    } else if (arg == "--first-seed" && i + 1 < argc) {
+      first_seed = std::atoi(argv[++i]);
     } else if (arg == "--duration" && i + 1 < argc) {
       duration_s = std::atof(argv[++i]);
     } else if (arg == "--dir" && i + 1 < argc) {
@@ -158,7 +162,8 @@ int main(int argc, char** argv) {
       std::printf(
           "rgbdt_map_drift: registration drift on LIDAR-only sim streets, several seeds, six modes of\n"
           "guess and registration (see the top of bench/registration_drift.cpp).\n"
-          "Usage: %s [--seeds N (7)] [--duration S (80, the issue's 100 m at 1.25 m/s)] [--dir DIR]\n"
+          "Usage: %s [--seeds N (7)] [--first-seed K (1): seeds K to K+N-1] [--duration S (80, the issue's\n"
+          "       100 m at 1.25 m/s)] [--dir DIR]\n"
           "       %s --session DIR   (one session of clouds with ground truth: DIR/clouds/index.csv and\n"
           "                            DIR/ground_truth/trajectory.csv, e.g. rgbdt_map_bench --write-session)\n",
           argv[0], argv[0]);
@@ -175,8 +180,9 @@ int main(int argc, char** argv) {
     }
     seeds = 1;
   }
-  if (seeds < 1 || !(duration_s > 5.0)) {
-    std::fprintf(stderr, "rgbdt_map_drift: --seeds %d, --duration %g: expected >= 1 and > 5 s\n", seeds, duration_s);
+  if (seeds < 1 || first_seed < 1 || !(duration_s > 5.0)) {
+    std::fprintf(stderr, "rgbdt_map_drift: --seeds %d, --first-seed %d, --duration %g: expected >= 1, >= 1 and > 5 s\n",
+                 seeds, first_seed, duration_s);
     return 2;
   }
   std::printf("%-6s %-11s %12s %12s %10s %11s %10s %13s %11s\n", "seed", "guess", "anchored m", "aligned m", "final m",
@@ -190,7 +196,7 @@ int main(int argc, char** argv) {
   double sum[kModes][6] = {};
   double sweep_sum[2] = {}, sweep_sum2[2] = {};
   int sweep_n[2] = {};
-  for (int seed = 1; seed <= seeds; ++seed) {
+  for (int seed = first_seed; seed < first_seed + seeds; ++seed) {
     const fs::path session = one_session.empty() ? dir / ("seed" + std::to_string(seed)) : one_session;
     if (!fs::exists(session / "ground_truth" / "trajectory.csv")) {
       std::printf("[simulating seed %d: %.0f s street, LIDAR only]\n", seed, duration_s);
