@@ -276,8 +276,9 @@ int main(int argc, char** argv) {
                "tilt the last 3 tilts' motion as one smooth curve against the older ones, on a local map of 24 "
                "tilts merged with covariances computed anew, and a tighter robust loss from the 11th tilt. On 14 "
                "simulated 100 m streets the trajectory error anchored at the first pose fell from 7.7 to 2.9 cm "
-               "on average (aligned: 1.8 to 0.4 cm); registration takes ~2.6x as long (79 instead of 31 ms of "
-               "CPU per 0.6 s tilt). Not with "
+               "on average (aligned: 1.8 to 0.4 cm); registration takes ~2x as long (on a quiet host 49 instead "
+               "of 26 ms of CPU per 0.6 s tilt, ~55 ms with colour: 10x faster than real time, every 3rd tilt "
+               "~3-4x a plain one). Not with "
                "--icp icp; with --motion-prior only the merged local map applies");
   app.add_option("--motion-prior", motion_prior,
                  "CSV time_s,x,y,z,qx,qy,qz,qw of the LIDAR's motion from another sensor (IMU or wheel "
