@@ -1,0 +1,35 @@
+#include "rgbdt/core/interrupt.hpp"
+
+#include <csignal>
+
+namespace rgbdt::core {
+namespace {
+
+volatile std::sig_atomic_t g_signal = 0;
+
+extern "C" void on_interrupt(int sig) {
+  if (g_signal != 0) {
+    // A second Ctrl-C: the user wants out now.
+    std::signal(sig, SIG_DFL);
+    std::raise(sig);
+    return;
+  }
+  g_signal = sig;
+}
+
+}  // namespace
+
+void install_interrupt_handler() {
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = 0;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+bool interrupted() { return g_signal != 0; }
+
+int interrupt_signal() { return static_cast<int>(g_signal); }
+
+}  // namespace rgbdt::core
