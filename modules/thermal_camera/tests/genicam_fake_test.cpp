@@ -68,9 +68,10 @@ TEST_F(GenicamFake, Streams200FramesWithNoneLost) {
   EXPECT_EQ(frames[0].image.type(), CV_8UC1);
   EXPECT_EQ(frames[0].pixel_format, "Mono8");
   // The rate setting took effect: the median interval of the camera's own time stamps is
-  // the 10 ms period. The fake stamps a frame when its thread wakes, so a loaded host adds
-  // a few ms of jitter (the median ignores the late minority); the fake's default rate
-  // would give 40 ms, far outside 10 +- 2 ms.
+  // near the 10 ms period and far from the fake's default of 40 ms. The fake stamps a frame
+  // when its thread wakes, so on a loaded host every interval stretches by the wake-up
+  // latency (12 ms medians are seen on a 2-core host with a build running): the bound sits
+  // halfway to the default, where a rate that did not take effect lands whatever the load.
   EXPECT_NEAR(camera.frame_rate_hz(), 100.0, 1e-6);
   std::vector<double> intervals_ms;
   for (size_t i = 1; i < frames.size(); ++i) {
@@ -79,7 +80,8 @@ TEST_F(GenicamFake, Streams200FramesWithNoneLost) {
   }
   std::nth_element(intervals_ms.begin(), intervals_ms.begin() + intervals_ms.size() / 2,
                    intervals_ms.end());
-  EXPECT_NEAR(intervals_ms[intervals_ms.size() / 2], 10.0, 2.0);
+  EXPECT_GE(intervals_ms[intervals_ms.size() / 2], 9.0);
+  EXPECT_LT(intervals_ms[intervals_ms.size() / 2], 20.0);
   EXPECT_GT(stats.frame_rate_hz, 0.0);
 }
 
