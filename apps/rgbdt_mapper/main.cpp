@@ -505,8 +505,14 @@ int main(int argc, char** argv) {
       const bool thermal = name == "thermal" || entry.radiometry.has_value();
       std::vector<core::TimedFile> frames;
       std::error_code ec;
-      if (entry.frames.empty()) {
-        preflight.add(session.directory, "camera '" + name + "' has no 'frames' (expected a CSV index time_s,file)");
+      // `frames: ""` (a camera without recorded frames, as `rgbdt_sim mapping --no-images`
+      // writes) reaches here resolved to the session folder itself: a camera that colours
+      // nothing, not a folder named by mistake.
+      const bool no_frames =
+          entry.frames.empty() || fs::path(entry.frames).lexically_normal() / "" ==
+                                      fs::path(session.directory).lexically_normal() / "";
+      if (no_frames) {
+        // said below, with the cameras whose index is empty
       } else if (!fs::is_regular_file(entry.frames, ec)) {
         preflight.add(entry.frames, std::string(fs::is_directory(entry.frames, ec) ? "is a folder" : "does not exist") +
                                         ", expected camera '" + name + "''s frame index (CSV time_s,file)");

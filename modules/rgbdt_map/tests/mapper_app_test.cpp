@@ -386,6 +386,8 @@ TEST(MapperApp, UnusualRigsMapAndSayWhichColourOutputsAreMissing) {
       {"no_camera", {}, "", false, false},
       {"rgb_header_only", {"rgb", "thermal"}, "time_s,file\n", false, true},
       {"rgb_outside_lidar_time", {"rgb", "thermal"}, "time_s,file\n1000.0,0.png\n1000.2,1.png\n", false, true},
+      // what `rgbdt_sim mapping --no-images` writes: both cameras with `frames: ""`
+      {"no_images", {"rgb", "thermal"}, "", false, false},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
@@ -394,6 +396,14 @@ TEST(MapperApp, UnusualRigsMapAndSayWhichColourOutputsAreMissing) {
     options.cameras = c.cameras;
     write_session(dir / "session", 3, options);
     if (!c.rgb_index.empty()) std::ofstream(dir / "session/rgb/index.csv") << c.rgb_index;
+    if (c.name == "no_images") {
+      std::string yaml = read_text(dir / "session/session.yaml");
+      for (const std::string index : {"rgb/index.csv", "thermal/index.csv"}) {
+        ASSERT_NE(yaml.find(index), std::string::npos) << yaml;
+        yaml.replace(yaml.find(index), index.size(), "\"\"");
+      }
+      std::ofstream(dir / "session/session.yaml") << yaml;
+    }
     ASSERT_EQ(run_mapper(dir, "out"), 0) << read_text(dir / "out.txt");
     const std::string json = read_text(dir / "out/summary.json");
     EXPECT_EQ(json_value(json, "clouds"), 3) << json;
