@@ -14,6 +14,15 @@
 //   OUT/render_{rgb,thermal}_{top,perspective}.png
 //   OUT/summary.json                    counts, coloured fractions, stage times, trajectory error,
 //                                       thermal error against ground truth (simulated sessions)
+// Colour outputs (map_rgb.ot, render_rgb_*; map_thermal.ot, render_thermal_*) are written
+// only when some point took that colour; summary.json names what was not written and why.
+//
+// Before the long work a preflight checks every file the session names (camera_info,
+// extrinsics, frame indexes, every frame's PNG header against its camera_info, the cloud
+// files) and lists every problem at once; nothing is written then. Every output is written
+// to a temporary sibling and renamed into place; summary.json is written last and marks a
+// complete run (a stale one in OUT is removed first). Ctrl-C stops at the next cloud and
+// writes nothing half-done (exit 130).
 #include <CLI/CLI.hpp>
 #include <yaml-cpp/yaml.h>
 
@@ -21,23 +30,30 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <map>
 #include <optional>
 #include <sstream>
+#include <string_view>
 
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/log.hpp"
+#include "rgbdt/core/output.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/core/time_index.hpp"
+#include "rgbdt/core/transform.hpp"
 #include "rgbdt/rgbdt_map/colorize.hpp"
 #include "rgbdt/rgbdt_map/export.hpp"
 #include "rgbdt/rgbdt_map/registration.hpp"
@@ -55,6 +71,10 @@ using namespace rgbdt::rgbdt_map;
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+/// A camera frame colours a cloud only when taken within this time of the cloud's middle
+/// (the poses that move points to the frame's time are known only around the tilts) [s].
+constexpr double kMaxFrameGapS = 1.0;
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
@@ -70,6 +90,7 @@ struct Camera {
   cv::Mat image;
   // Statistics.
   std::size_t colored = 0, occluded = 0, in_view = 0;
+  std::size_t clouds_without_frame = 0;  ///< clouds with no frame within kMaxFrameGapS
   double decode_s = 0.0;  ///< time spent reading and decoding its images
 
   const cv::Mat& load(const std::string& path) {
@@ -188,6 +209,12 @@ class BeamTemperatureTruth {
 
 /// Absolute errors of coloured points' temperatures against the truth.
 struct ThermalErrors {
+  static std::string number(double v) {
+    if (!std::isfinite(v)) return "null";
+    std::ostringstream os;
+    os << std::setprecision(4) << v;
+    return os.str();
+  }
   std::vector<float> error_k;
   std::size_t without_truth = 0;
   std::string json() const {
@@ -200,10 +227,15 @@ struct ThermalErrors {
       std::nth_element(e.begin(), at, e.end());
       return static_cast<double>(*at);
     };
+    const double mean = sum / e.size(), median = quantile(0.5), p95 = quantile(0.95);
     std::ostringstream os;
-    os << std::setprecision(4) << "{\"mean\": " << sum / e.size() << ", \"median\": " << quantile(0.5)
-       << ", \"p95\": " << quantile(0.95) << ", \"points\": " << e.size()
-       << ", \"points_without_truth\": " << without_truth << "}";
+    os << "{\"mean\": " << number(mean) << ", \"median\": " << number(median) << ", \"p95\": " << number(p95)
+       << ", \"points\": " << e.size() << ", \"points_without_truth\": " << without_truth;
+    // JSON has no inf or nan: such a statistic is null, and says why.
+    if (!std::isfinite(mean) || !std::isfinite(median) || !std::isfinite(p95)) {
+      os << ", \"null_because\": \"some temperatures are not finite (check the radiometry)\"";
+    }
+    os << "}";
     return os.str();
   }
 };
@@ -242,6 +274,139 @@ std::string json_string(const std::string& text) {
     }
   }
   return out + "\"";
+}
+
+/// What a PNG's IHDR chunk says (bytes 16..25 of the file).
+struct PngHeader {
+  std::uint32_t width = 0, height = 0;
+  int bit_depth = 0;
+  int color_type = 0;  ///< 0 grey, 2 RGB, 3 palette, 4 grey + alpha, 6 RGBA
+};
+
+/// Reads only the PNG signature and IHDR chunk of `path`; empty with the reason in `why`
+/// when the file is not a PNG. (A local reader: core's image header reader replaces it
+/// once it exists.)
+std::optional<PngHeader> read_png_header(const std::string& path, std::string* why) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char b[26] = {};
+  if (!in || !in.read(reinterpret_cast<char*>(b), sizeof b)) {
+    *why = "cannot read a PNG header (26 bytes)";
+    return std::nullopt;
+  }
+  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (std::memcmp(b, kSignature, 8) != 0 || std::memcmp(b + 12, "IHDR", 4) != 0) {
+    *why = "is not a PNG (no PNG signature and IHDR chunk)";
+    return std::nullopt;
+  }
+  auto be32 = [&](int at) {
+    return (std::uint32_t{b[at]} << 24) | (std::uint32_t{b[at + 1]} << 16) | (std::uint32_t{b[at + 2]} << 8) |
+           std::uint32_t{b[at + 3]};
+  };
+  PngHeader h;
+  h.width = be32(16);
+  h.height = be32(20);
+  h.bit_depth = b[24];
+  h.color_type = b[25];
+  return h;
+}
+
+std::string png_kind(const PngHeader& h) {
+  const char* type = h.color_type == 0   ? "grey"
+                     : h.color_type == 2 ? "RGB"
+                     : h.color_type == 3 ? "palette"
+                     : h.color_type == 4 ? "grey+alpha"
+                     : h.color_type == 6 ? "RGBA"
+                                         : "unknown colour type";
+  return std::to_string(h.width) + "x" + std::to_string(h.height) + " px " + std::to_string(h.bit_depth) + "-bit " +
+         type;
+}
+
+/// Problems found before the long work, listed together (a file can be named many times,
+/// e.g. 500 frames of another size: the first few per kind are listed, then a count).
+class Preflight {
+ public:
+  void add(const std::string& file, const std::string& what, const std::string& group = "") {
+    const std::string key = group.empty() ? file : group;
+    if (++per_group_[key] > kListed) return;
+    problems_.push_back(file + ": " + what);
+  }
+  /// An error a reader threw about `file`: its message already names the file when it
+  /// starts with it.
+  void add_error(const std::string& file, const std::string& context, const std::exception& e) {
+    std::string what = e.what();
+    if (what.rfind(file + ": ", 0) == 0) what = what.substr(file.size() + 2);
+    add(file, context + ": " + what);
+  }
+  bool ok() const { return problems_.empty(); }
+  std::string report() const {
+    std::ostringstream os;
+    std::size_t total = 0;
+    for (const auto& [group, n] : per_group_) total += n;
+    os << "the session has " << total << " problem" << (total == 1 ? "" : "s")
+       << " (nothing was written; fix them and run again):";
+    for (const std::string& p : problems_) os << "\n  " << p;
+    for (const auto& [group, n] : per_group_) {
+      if (n > kListed) os << "\n  ... and " << (n - kListed) << " more like the above (" << group << ")";
+    }
+    return os.str();
+  }
+
+ private:
+  static constexpr std::size_t kListed = 5;
+  std::vector<std::string> problems_;
+  std::map<std::string, std::size_t> per_group_;
+};
+
+/// Checks a camera's frame files against its camera_info: each exists, is a PNG of the
+/// camera's size, and a thermal frame holds 16-bit grey counts (what the radiometry maps).
+void check_frames(const std::string& camera, const core::CameraIntrinsics& intrinsics, bool thermal,
+                  const std::vector<core::TimedFile>& frames, Preflight* preflight) {
+  for (const core::TimedFile& f : frames) {
+    std::error_code ec;
+    const auto status = fs::status(f.file, ec);
+    if (!fs::exists(status)) {
+      preflight->add(f.file, "missing (camera '" + camera + "' frame at t=" + std::to_string(f.time_s) + " s)",
+                     "camera '" + camera + "' missing frames");
+      continue;
+    }
+    if (!fs::is_regular_file(status)) {
+      preflight->add(f.file, "is not a file, expected a PNG frame of camera '" + camera + "'",
+                     "camera '" + camera + "' frames that are not files");
+      continue;
+    }
+    std::string why;
+    const std::optional<PngHeader> h = read_png_header(f.file, &why);
+    if (!h) {
+      preflight->add(f.file, why + ", expected a PNG frame of camera '" + camera + "'",
+                     "camera '" + camera + "' frames that are not PNGs");
+      continue;
+    }
+    if (static_cast<long>(h->width) != intrinsics.width || static_cast<long>(h->height) != intrinsics.height) {
+      preflight->add(f.file, "is " + png_kind(*h) + ", expected camera '" + camera + "''s " +
+                                 std::to_string(intrinsics.width) + "x" + std::to_string(intrinsics.height) +
+                                 " px (its camera_info)",
+                     "camera '" + camera + "' frames of another size");
+      continue;
+    }
+    if (thermal && !(h->bit_depth == 16 && h->color_type == 0)) {
+      preflight->add(f.file, "is " + png_kind(*h) + ", expected 16-bit grey raw counts (thermal camera '" + camera +
+                                 "': its radiometry maps 16-bit counts to kelvin)",
+                     "camera '" + camera + "' frames that are not 16-bit grey");
+    }
+  }
+}
+
+/// The stage the run reached when Ctrl-C arrived: says what is complete, writes nothing.
+int stop_interrupted(const std::string& where, const std::vector<std::string>& written, const std::string& out_dir) {
+  std::fprintf(stderr, "rgbdt_mapper: interrupted %s; ", where.c_str());
+  if (written.empty()) {
+    std::fprintf(stderr, "nothing was written");
+  } else {
+    std::fprintf(stderr, "complete in %s:", out_dir.c_str());
+    for (const std::string& f : written) std::fprintf(stderr, " %s", f.c_str());
+  }
+  std::fprintf(stderr, "; the other outputs and summary.json (the mark of a complete run) were not written\n");
+  return 130;
 }
 
 }  // namespace
@@ -297,6 +462,10 @@ int main(int argc, char** argv) {
   }
   core::set_log_sink(core::stderr_log_sink);
   core::set_log_level(core::LogLevel::kWarning);
+  core::install_interrupt_handler();
+  // A file size limit makes a write fail (EFBIG) like a full disk, reported naming the
+  // file, instead of ending the process with SIGXFSZ.
+  std::signal(SIGXFSZ, SIG_IGN);
 
   try {
     const auto t_start = Clock::now();
@@ -305,25 +474,131 @@ int main(int argc, char** argv) {
     const core::MappingSession session = core::read_mapping_session(session_path);
     const bool has_rawlog = !session.lidar.rawlog.empty() && !session.lidar.rig.empty();
     if (lidar_source == "auto") lidar_source = has_rawlog ? "rawlog" : "clouds";
+
+    // Preflight: every file the session names, before any long work and before OUT is
+    // touched. All problems are listed together.
+    Preflight preflight;
+    std::vector<Camera> cameras;
+    std::vector<float> lut_k;
+    std::string radiometry_text;
+    for (const auto& [name, entry] : session.cameras) {
+      std::optional<core::CameraIntrinsics> intrinsics;
+      try {
+        intrinsics = core::read_camera_info(entry.intrinsics);
+      } catch (const std::exception& e) {
+        preflight.add_error(entry.intrinsics, "camera '" + name + "' intrinsics", e);
+      }
+      const fs::path extrinsics_path = fs::path(calib_dir) / ("extrinsics_" + name + ".yaml");
+      std::optional<Eigen::Isometry3d> T_camera_lidar;
+      try {
+        const Eigen::Isometry3d T = core::read_extrinsics(extrinsics_path.string()).T_parent_child;
+        if (!T.matrix().allFinite()) {
+          preflight.add(extrinsics_path.string(), "camera '" + name +
+                                                      "': the transform has non-finite values (nan or inf), "
+                                                      "expected finite translation and rotation");
+        } else {
+          T_camera_lidar = T;
+        }
+      } catch (const std::exception& e) {
+        preflight.add_error(extrinsics_path.string(), "camera '" + name + "' extrinsics", e);
+      }
+      const bool thermal = name == "thermal" || entry.radiometry.has_value();
+      std::vector<core::TimedFile> frames;
+      std::error_code ec;
+      // `frames: ""` (a camera without recorded frames, as `rgbdt_sim mapping --no-images`
+      // writes) reaches here resolved to the session folder itself: a camera that colours
+      // nothing, not a folder named by mistake.
+      const bool no_frames =
+          entry.frames.empty() || fs::path(entry.frames).lexically_normal() / "" ==
+                                      fs::path(session.directory).lexically_normal() / "";
+      if (no_frames) {
+        // said below, with the cameras whose index is empty
+      } else if (!fs::is_regular_file(entry.frames, ec)) {
+        preflight.add(entry.frames, std::string(fs::is_directory(entry.frames, ec) ? "is a folder" : "does not exist") +
+                                        ", expected camera '" + name + "''s frame index (CSV time_s,file)");
+      } else {
+        try {
+          frames = core::read_time_index(entry.frames);
+        } catch (const std::exception& e) {
+          preflight.add_error(entry.frames, "camera '" + name + "' frame index", e);
+        }
+      }
+      if (intrinsics) check_frames(name, *intrinsics, thermal, frames, &preflight);
+      if (thermal) {
+        try {
+          const thermal_camera::Radiometry radiometry = thermal_radiometry(entry, session.directory, name);
+          lut_k = radiometry.lookup_table();
+          radiometry_text = radiometry.describe();
+          // Temperatures must be numbers: an infinite one (e.g. kelvin_per_count: 1e300) would
+          // make every statistic of the map meaningless.
+          for (std::size_t c = 0; c < lut_k.size(); ++c) {
+            if (std::isinf(lut_k[c])) {
+              preflight.add(session.directory + "/session.yaml",
+                            "camera '" + name + "' radiometry " + radiometry_text + " maps count " +
+                                std::to_string(c) + " to " + (lut_k[c] > 0 ? "+inf" : "-inf") +
+                                " K, expected finite temperatures for every count");
+              break;
+            }
+          }
+        } catch (const std::exception& e) {
+          std::string what = e.what();  // thermal_radiometry names the session folder
+          if (what.rfind(session.directory + ": ", 0) == 0) what = what.substr(session.directory.size() + 2);
+          preflight.add(session.directory + "/session.yaml", what);
+        }
+      }
+      if (intrinsics && T_camera_lidar) {
+        Camera camera(name, MappedCamera{core::PinholeCamera(*intrinsics), *T_camera_lidar});
+        camera.frames = std::move(frames);
+        camera.thermal = thermal;
+        cameras.push_back(std::move(camera));
+      }
+    }
+    std::vector<core::TimedFile> cloud_index;
+    if (lidar_source == "rawlog") {
+      if (!has_rawlog) {
+        preflight.add(session.directory, "--lidar rawlog needs lidar: {rawlog: FILE, rig: tilt_rig.yaml}");
+      } else {
+        for (const std::string& f : {session.lidar.rawlog, session.lidar.rig}) {
+          std::error_code ec;
+          if (!fs::is_regular_file(f, ec)) preflight.add(f, "does not exist or is not a file (named by lidar:)");
+        }
+      }
+    } else if (session.lidar.clouds.empty()) {
+      preflight.add(session.directory, "lidar has neither a rawlog with its rig nor a 'clouds' index "
+                                       "(expected lidar: {rawlog: lidar.rawlog, rig: tilt_rig.yaml} or "
+                                       "{clouds: clouds/index.csv})");
+    } else {
+      std::error_code ec;
+      if (!fs::is_regular_file(session.lidar.clouds, ec)) {
+        preflight.add(session.lidar.clouds, "does not exist or is not a file, expected the cloud index (CSV "
+                                            "time_s,file.pcd)");
+      } else {
+        try {
+          cloud_index = core::read_time_index(session.lidar.clouds);
+        } catch (const std::exception& e) {
+          preflight.add_error(session.lidar.clouds, "cloud index", e);
+        }
+        if (max_clouds > 0 && static_cast<int>(cloud_index.size()) > max_clouds) cloud_index.resize(max_clouds);
+        for (const core::TimedFile& f : cloud_index) {
+          if (!fs::is_regular_file(f.file, ec)) {
+            preflight.add(f.file, std::string(fs::exists(f.file, ec) ? "is not a file" : "missing") +
+                                      ", expected the PCD of the cloud at t=" + std::to_string(f.time_s) + " s",
+                          "missing clouds");
+          }
+        }
+      }
+    }
+    if (!preflight.ok()) throw core::Error(session.directory, preflight.report());
+
     std::vector<TiltSource> clouds;
     std::string assembler_json = "null";
     auto t0 = Clock::now();
     if (lidar_source == "rawlog") {
-      if (!has_rawlog) {
-        throw core::Error(session.directory, "--lidar rawlog needs lidar: {rawlog: FILE, rig: tilt_rig.yaml}");
-      }
       std::printf("rgbdt_mapper: assembling %s\n", session.lidar.rawlog.c_str());
       std::fflush(stdout);
       clouds = assemble_rawlog(session, &assembler_json);
     } else {
-      if (session.lidar.clouds.empty()) {
-        throw core::Error(session.directory, "lidar has neither a rawlog with its rig nor a 'clouds' index "
-                                             "(expected lidar: {rawlog: lidar.rawlog, rig: tilt_rig.yaml} or "
-                                             "{clouds: clouds/index.csv})");
-      }
-      for (const core::TimedFile& f : core::read_time_index(session.lidar.clouds)) {
-        clouds.push_back({f.time_s, f.file, nullptr});
-      }
+      for (const core::TimedFile& f : cloud_index) clouds.push_back({f.time_s, f.file, nullptr});
     }
     stage_s["lidar_input"] = seconds_since(t0);
     if (max_clouds > 0 && static_cast<int>(clouds.size()) > max_clouds) clouds.resize(max_clouds);
@@ -333,25 +608,20 @@ int main(int argc, char** argv) {
     }
     const std::optional<BeamTemperatureTruth> temperature_truth = BeamTemperatureTruth::load(session.directory);
     ThermalErrors thermal_errors;
-
-    std::vector<Camera> cameras;
-    std::vector<float> lut_k;
-    std::string radiometry_text;
-    for (const auto& [name, entry] : session.cameras) {
-      Camera camera(name, MappedCamera{core::PinholeCamera(core::read_camera_info(entry.intrinsics)),
-                                       Eigen::Isometry3d::Identity()});
-      const fs::path extrinsics = fs::path(calib_dir) / ("extrinsics_" + name + ".yaml");
-      camera.mapped.T_camera_lidar = core::read_extrinsics(extrinsics.string()).T_parent_child;
-      camera.frames = core::read_time_index(entry.frames);
-      camera.thermal = name == "thermal" || entry.radiometry.has_value();
-      if (camera.thermal) {
-        const thermal_camera::Radiometry radiometry = thermal_radiometry(entry, session.directory, name);
-        lut_k = radiometry.lookup_table();
-        radiometry_text = radiometry.describe();
+    // A camera whose frames do not overlap the LIDAR's time colours nothing: valid, but say so.
+    for (const Camera& c : cameras) {
+      const double lidar_begin = clouds.front().time_s, lidar_end = clouds.back().time_s + kMaxFrameGapS;
+      if (c.frames.empty()) {
+        std::printf("rgbdt_mapper: camera '%s' has no frames: no point takes its %s\n", c.name.c_str(),
+                    c.thermal ? "temperature" : "colour");
+      } else if (c.frames.back().time_s < lidar_begin - kMaxFrameGapS || c.frames.front().time_s > lidar_end) {
+        std::printf("rgbdt_mapper: camera '%s' frames span %.3f - %.3f s, outside the LIDAR's %.3f - %.3f s: no "
+                    "point takes its %s\n",
+                    c.name.c_str(), c.frames.front().time_s, c.frames.back().time_s, lidar_begin,
+                    clouds.back().time_s, c.thermal ? "temperature" : "colour");
       }
-      cameras.push_back(std::move(camera));
     }
-    fs::create_directories(out_dir);
+
     std::printf("rgbdt_mapper: %zu clouds (%s), cameras:", clouds.size(), lidar_source.c_str());
     for (const auto& c : cameras) std::printf(" %s (%zu frames)", c.name.c_str(), c.frames.size());
     if (!radiometry_text.empty()) std::printf("; thermal radiometry %s", radiometry_text.c_str());
@@ -378,10 +648,26 @@ int main(int argc, char** argv) {
       std::printf("motion prior: %s (%zu poses)\n", motion_prior.c_str(), prior.size());
       odometry.set_motion_prior(std::move(prior));
     }
+    // OUT: the completion marker of an earlier run goes first, then every file this run
+    // writes (colour outputs it may skip included), so OUT never mixes two runs.
+    const fs::path out(out_dir);
+    const std::vector<std::string> output_names = {
+        "summary.json",    "trajectory.csv",       "map.ply",
+        "map.pcd",         "map.bt",               "map_rgb.ot",
+        "map_thermal.ot",  "render_rgb_top.png",   "render_rgb_perspective.png",
+        "render_thermal_top.png", "render_thermal_perspective.png"};
+    fs::create_directories(out_dir);
+    for (const std::string& name : output_names) core::remove_stale_output((out / name).string());
+    std::vector<std::string> written;
     t0 = Clock::now();
     std::size_t total_points = 0, not_converged = 0;
     double icp_ms = 0.0;
     for (std::size_t k = 0; k < clouds.size(); ++k) {
+      if (core::interrupted()) {
+        return stop_interrupted("during the registration, before cloud " + std::to_string(k + 1) + "/" +
+                                    std::to_string(clouds.size()),
+                                written, out_dir);
+      }
       const cloud::LoadedCloud loaded = clouds[k].load();
       total_points += loaded.cloud->size();
       const Odometry::Step step = odometry.add(*loaded.cloud, clouds[k].time_s);
@@ -433,7 +719,19 @@ int main(int argc, char** argv) {
                   window.time_ms / 1000.0, window.not_converged);
     }
     const Trajectory& trajectory = odometry.trajectory();
-    write_trajectory_csv((fs::path(out_dir) / "trajectory.csv").string(), trajectory);
+    {
+      // trajectory.hpp's CSV layout, written atomically.
+      std::ostringstream csv;
+      csv << "time_s,x,y,z,qx,qy,qz,qw\n" << std::setprecision(10);
+      for (const auto& p : trajectory.poses()) {
+        const Eigen::Vector3d t = p.T_world_lidar.translation();
+        const Eigen::Vector4d q = core::quaternion_to_xyzw(Eigen::Quaterniond(p.T_world_lidar.rotation()));
+        csv << p.time_s << ',' << t.x() << ',' << t.y() << ',' << t.z() << ',' << q[0] << ',' << q[1] << ','
+            << q[2] << ',' << q[3] << '\n';
+      }
+      core::write_file_atomic((out / "trajectory.csv").string(), csv.str());
+      written.push_back("trajectory.csv");
+    }
 
     // Stage 2: colouring, voxel map, occupancy.
     t0 = Clock::now();
@@ -444,6 +742,11 @@ int main(int argc, char** argv) {
     OccupancyMapBuilder occupancy(occupancy_options);
     double colorize_s = 0.0, occupancy_s = 0.0, truth_s = 0.0, voxel_map_s = 0.0;
     for (std::size_t k = 0; k < clouds.size(); ++k) {
+      if (core::interrupted()) {
+        return stop_interrupted("while colouring and mapping, before cloud " + std::to_string(k + 1) + "/" +
+                                    std::to_string(clouds.size()),
+                                written, out_dir);
+      }
       const cloud::LoadedCloud loaded = clouds[k].load();
       const cloud::Cloud& cloud = *loaded.cloud;
       float t_max = 0.0f;
@@ -455,7 +758,11 @@ int main(int argc, char** argv) {
       std::optional<Temperatures> temps;
       for (Camera& camera : cameras) {
         const int frame = core::nearest_in_time(camera.frames, mid_time_s);
-        if (frame < 0) continue;
+        // No frame near the cloud's time: its points stay without this camera's colour.
+        if (frame < 0 || std::abs(camera.frames[frame].time_s - mid_time_s) > kMaxFrameGapS) {
+          ++camera.clouds_without_frame;
+          continue;
+        }
         const core::TimedFile& file = camera.frames[frame];
         const CameraProjection projection = project_with_occlusion(
             cloud, loaded.has_ring && loaded.has_t, clouds[k].time_s, camera.mapped, file.time_s, &trajectory);
@@ -519,29 +826,72 @@ int main(int argc, char** argv) {
     colorize_parts_s["colour"] = colorize_s - decode_s - truth_s - voxel_map_s;
     stage_s["octomap_occupancy"] = occupancy_s;
 
-    // Stage 3: files.
-    t0 = Clock::now();
+    // Stage 3: files. Colour outputs only where some point took that colour.
     const std::vector<MapPoint> points = map.points(layer);
-    const fs::path out(out_dir);
-    write_ply((out / "map.ply").string(), points);
-    write_pcd((out / "map.pcd").string(), points);
-    stage_s["export_ply_pcd"] = seconds_since(t0);
-    t0 = Clock::now();
-    occupancy.write_bt((out / "map.bt").string());
-    write_color_octree((out / "map_rgb.ot").string(), points, resolution_m);
-    write_thermal_octree((out / "map_thermal.ot").string(), points, resolution_m);
-    stage_s["export_octomap"] = seconds_since(t0);
-    t0 = Clock::now();
-    RenderOptions render_options;
-    render_options.voxel_size_m = resolution_m;
-    for (const auto& [mode, name] : {std::pair{RenderMode::kRgb, "rgb"}, std::pair{RenderMode::kThermal, "thermal"}}) {
-      const std::string base = (out / ("render_" + std::string(name))).string();
-      if (!cv::imwrite(base + "_top.png", render_top_view(points, mode, render_options)) ||
-          !cv::imwrite(base + "_perspective.png", render_perspective(points, mode, render_options))) {
-        throw core::Error(base + "_*.png", "cannot write PNG");
+    const bool any_rgb = std::any_of(points.begin(), points.end(), [](const MapPoint& p) { return p.has_rgb; });
+    const bool any_temperature =
+        std::any_of(points.begin(), points.end(), [](const MapPoint& p) { return std::isfinite(p.temperature_k); });
+    std::map<std::string, std::string> not_written;
+    auto why_no_colour = [&](bool thermal) -> std::string {
+      const bool has_camera = std::any_of(cameras.begin(), cameras.end(), [&](const Camera& c) {
+        return c.thermal == thermal;
+      });
+      if (!has_camera) return thermal ? "no thermal camera in the session" : "no RGB camera in the session";
+      return thermal ? "no point took a temperature (no thermal frame near the clouds' times, or none saw them)"
+                     : "no point took an RGB colour (no RGB frame near the clouds' times, or none saw them)";
+    };
+    if (!any_rgb) {
+      for (const char* name : {"map_rgb.ot", "render_rgb_top.png", "render_rgb_perspective.png"}) {
+        not_written[name] = why_no_colour(false);
       }
     }
-    stage_s["render"] = seconds_since(t0);
+    if (!any_temperature) {
+      for (const char* name : {"map_thermal.ot", "render_thermal_top.png", "render_thermal_perspective.png"}) {
+        not_written[name] = why_no_colour(true);
+      }
+    }
+    RenderOptions render_options;
+    render_options.voxel_size_m = resolution_m;
+    auto write_png = [&](const std::string& name, const cv::Mat& image) {
+      const std::string path = (out / name).string();
+      std::vector<unsigned char> png;
+      if (image.empty() || !cv::imencode(".png", image, png)) throw core::Error(path, "cannot encode the render as PNG");
+      core::write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+    };
+    const std::vector<std::pair<std::string, std::function<void(const std::string&)>>> exports = {
+        {"map.ply", [&](const std::string& path) { write_ply(path, points); }},
+        {"map.pcd", [&](const std::string& path) { write_pcd(path, points); }},
+        {"map.bt", [&](const std::string& path) { occupancy.write_bt(path); }},
+        {"map_rgb.ot", [&](const std::string& path) { write_color_octree(path, points, resolution_m); }},
+        {"map_thermal.ot", [&](const std::string& path) { write_thermal_octree(path, points, resolution_m); }},
+        {"render_rgb_top.png",
+         [&](const std::string&) { write_png("render_rgb_top.png", render_top_view(points, RenderMode::kRgb, render_options)); }},
+        {"render_rgb_perspective.png",
+         [&](const std::string&) {
+           write_png("render_rgb_perspective.png", render_perspective(points, RenderMode::kRgb, render_options));
+         }},
+        {"render_thermal_top.png",
+         [&](const std::string&) {
+           write_png("render_thermal_top.png", render_top_view(points, RenderMode::kThermal, render_options));
+         }},
+        {"render_thermal_perspective.png",
+         [&](const std::string&) {
+           write_png("render_thermal_perspective.png",
+                     render_perspective(points, RenderMode::kThermal, render_options));
+         }},
+    };
+    for (const auto& [name, write] : exports) {
+      if (not_written.count(name)) continue;
+      if (core::interrupted()) return stop_interrupted("before writing " + name, written, out_dir);
+      std::printf("rgbdt_mapper: writing %s\n", name.c_str());
+      std::fflush(stdout);
+      t0 = Clock::now();
+      write((out / name).string());
+      const double s = seconds_since(t0);
+      stage_s[name.rfind("render_", 0) == 0 ? "render" : name == "map.ply" || name == "map.pcd" ? "export_ply_pcd"
+                                                                                                : "export_octomap"] += s;
+      written.push_back(name);
+    }
 
     std::optional<double> rmse, ate;
     std::optional<Trajectory> truth = ground_truth_trajectory(session.directory);
@@ -569,7 +919,8 @@ int main(int argc, char** argv) {
       if (!c.thermal && std::isnan(rgb_fraction)) rgb_fraction = fraction;
       json << ",\n  \"" << c.name << "\": {\"colored_points\": " << c.colored << ", \"colored_fraction\": "
            << json_number(fraction) << ", \"colored_fraction_in_view\": " << json_number(in_view)
-           << ", \"occluded_points\": " << c.occluded << "}";
+           << ", \"occluded_points\": " << c.occluded << ", \"clouds_without_frame\": " << c.clouds_without_frame
+           << "}";
     }
     json << ",\n  \"colored_fraction\": " << json_number(rgb_fraction);
     json << ",\n  \"trajectory_rmse_m\": " << (rmse ? json_number(*rmse) : "null");
@@ -591,8 +942,19 @@ int main(int argc, char** argv) {
       json << (first ? "" : ", ") << "\"" << part << "\": " << json_number(s);
       first = false;
     }
+    json << "}";
+    json << ",\n  \"outputs\": [";
+    for (std::size_t i = 0; i < written.size(); ++i) json << (i ? ", " : "") << json_string(written[i]);
+    json << ", \"summary.json\"],\n  \"outputs_not_written\": {";
+    first = true;
+    for (const auto& [name, why] : not_written) {
+      json << (first ? "" : ", ") << json_string(name) << ": " << json_string(why);
+      first = false;
+    }
     json << "}\n}\n";
-    std::ofstream((out / "summary.json").string()) << json.str();
+    if (core::interrupted()) return stop_interrupted("before writing summary.json", written, out_dir);
+    core::write_file_atomic((out / "summary.json").string(), json.str());
+    written.push_back("summary.json");
 
     std::printf("\n%s", json.str().c_str());
     // The rate that matters on a rig: registering and colouring a tilt against the time the
@@ -607,9 +969,10 @@ int main(int argc, char** argv) {
                   1e3 * per_tilt_s / (register_ms + colour_ms), 1e3 * colorize_parts_s["image_decode"] / n,
                   1e3 * colorize_parts_s["voxel_map"] / n, 1e3 * stage_s["octomap_occupancy"] / n);
     }
-    std::printf("\nwrote %s/{map.ply, map.pcd, map.bt, map_rgb.ot, map_thermal.ot, trajectory.csv, render_*.png, "
-                "summary.json}\n",
-                out_dir.c_str());
+    std::printf("\nwrote %s/{", out_dir.c_str());
+    for (std::size_t i = 0; i < written.size(); ++i) std::printf("%s%s", i ? ", " : "", written[i].c_str());
+    std::printf("}\n");
+    for (const auto& [name, why] : not_written) std::printf("not written: %s (%s)\n", name.c_str(), why.c_str());
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "rgbdt_mapper: error: %s\n", e.what());

@@ -162,6 +162,8 @@ CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring
   const core::PinholeCamera& camera = mapped.camera;
   const std::size_t n = cloud.size();
   CameraProjection out;
+  out.image_width = camera.width();
+  out.image_height = camera.height();
   out.pixel_px.assign(n, Eigen::Vector2f::Zero());
   out.depth_m.assign(n, 0.0f);
   out.status.assign(n, ColorStatus::kOutsideImage);
@@ -415,11 +417,28 @@ CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring
   return out;
 }
 
+namespace {
+
+// Pixels projected for one image size address other scene points in an image of another
+// size: refuse rather than colour from the wrong place.
+void check_image_size(const char* function, const CameraProjection& projection, const cv::Mat& image) {
+  if (projection.image_width == 0 && projection.image_height == 0) return;
+  if (image.cols != projection.image_width || image.rows != projection.image_height) {
+    throw std::invalid_argument(std::string(function) + ": image is " + std::to_string(image.cols) + "x" +
+                                std::to_string(image.rows) + " px, expected the camera's " +
+                                std::to_string(projection.image_width) + "x" +
+                                std::to_string(projection.image_height) + " px");
+  }
+}
+
+}  // namespace
+
 RgbColors sample_rgb(const CameraProjection& projection, const cv::Mat& image) {
   if (image.empty() || image.depth() != CV_8U || (image.channels() != 3 && image.channels() != 1)) {
     throw std::invalid_argument("sample_rgb: expected an 8-bit BGR or grey image, got type " +
                                 std::to_string(image.type()));
   }
+  check_image_size("sample_rgb", projection, image);
   const std::size_t n = projection.status.size();
   RgbColors out;
   out.rgb.assign(n, {0, 0, 0});
@@ -457,6 +476,7 @@ Temperatures sample_temperature(const CameraProjection& projection, const cv::Ma
     throw std::invalid_argument("sample_temperature: expected a 16-bit or 8-bit single-channel image, got type " +
                                 std::to_string(counts.type()));
   }
+  check_image_size("sample_temperature", projection, counts);
   const std::size_t n = projection.status.size();
   Temperatures out;
   out.temperature_k.assign(n, std::numeric_limits<float>::quiet_NaN());

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -16,6 +17,7 @@
 #include <unordered_set>
 
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/output.hpp"
 #include "rgbdt/rgbdt_map/thermal_octree.hpp"
 
 namespace rgbdt::rgbdt_map {
@@ -40,6 +42,29 @@ void ensure_parent(const std::string& path) {
   }
 }
 
+// Writes a file through `write(std::ostream&)` (false: the writer failed) into a temporary
+// sibling, checks the stream after the last byte, the flush and the close, and only then
+// renames it over `path`: a full disk or an unwritable folder throws naming `path` and
+// leaves no file there.
+template <typename Write>
+void write_checked(const std::string& path, const char* what, Write&& write) {
+  ensure_parent(path);
+  core::TempOutput temp(path);
+  {
+    std::ofstream out(temp.temp_path(), std::ios::binary);
+    if (!out) throw core::Error(path, std::string("cannot open for writing: ") + std::strerror(errno));
+    const bool written = write(out);
+    out.flush();
+    if (!written || !out) {
+      throw core::Error(path, std::string(what) + ": write failed (" + std::strerror(errno) +
+                                  "; disk full?), nothing was written");
+    }
+    out.close();
+    if (!out) throw core::Error(path, std::string(what) + ": close failed (" + std::strerror(errno) + ")");
+  }
+  temp.commit();
+}
+
 }  // namespace
 }  // namespace rgbdt::rgbdt_map
 
@@ -51,14 +76,6 @@ namespace rgbdt::rgbdt_map {
 
 void write_ply(const std::string& path, const std::vector<MapPoint>& points, std::array<std::uint8_t, 3> uncolored) {
   static_assert(sizeof(float) == 4, "PLY float is 4 bytes");
-  ensure_parent(path);
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw core::Error(path, "cannot open for writing");
-  out << "ply\nformat binary_little_endian 1.0\ncomment rgbdt map; temperature in kelvin, nan = unknown\n"
-      << "element vertex " << points.size() << "\n"
-      << "property float x\nproperty float y\nproperty float z\n"
-      << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-      << "property float temperature\nend_header\n";
   std::vector<char> buffer(points.size() * 19);
   char* w = buffer.data();
   for (const MapPoint& p : points) {
@@ -69,8 +86,15 @@ void write_ply(const std::string& path, const std::vector<MapPoint>& points, std
     std::memcpy(w + 15, &p.temperature_k, 4);
     w += 19;
   }
-  out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-  if (!out) throw core::Error(path, "write failed (disk full?)");
+  write_checked(path, "PLY", [&](std::ostream& out) {
+    out << "ply\nformat binary_little_endian 1.0\ncomment rgbdt map; temperature in kelvin, nan = unknown\n"
+        << "element vertex " << points.size() << "\n"
+        << "property float x\nproperty float y\nproperty float z\n"
+        << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        << "property float temperature\nend_header\n";
+    out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    return static_cast<bool>(out);
+  });
 }
 
 std::vector<MapPoint> read_ply(const std::string& path) {
@@ -125,7 +149,6 @@ std::vector<MapPoint> read_ply(const std::string& path) {
 }
 
 void write_pcd(const std::string& path, const std::vector<MapPoint>& points, std::array<std::uint8_t, 3> uncolored) {
-  ensure_parent(path);
   pcl::PointCloud<PointXYZRGBT> cloud;
   cloud.resize(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -143,7 +166,30 @@ void write_pcd(const std::string& path, const std::vector<MapPoint>& points, std
   cloud.width = static_cast<std::uint32_t>(cloud.size());
   cloud.height = 1;
   cloud.is_dense = false;
-  if (pcl::io::savePCDFileBinary(path, cloud) != 0) throw core::Error(path, "cannot write PCD");
+  // PCL's header, and its binary layout (the named fields packed in order, padding left
+  // out), written through a checked stream: PCL's own writer maps the file into memory,
+  // where a full disk is a signal rather than an error.
+  std::vector<pcl::PCLPointField> fields;
+  for (const pcl::PCLPointField& f : pcl::getFields<PointXYZRGBT>()) {
+    if (f.name != "_") fields.push_back(f);
+  }
+  std::size_t point_bytes = 0;
+  for (const pcl::PCLPointField& f : fields) point_bytes += f.count * pcl::getFieldSize(f.datatype);
+  std::vector<char> buffer(cloud.size() * point_bytes);
+  char* w = buffer.data();
+  for (const PointXYZRGBT& q : cloud) {
+    for (const pcl::PCLPointField& f : fields) {
+      const std::size_t bytes = f.count * pcl::getFieldSize(f.datatype);
+      std::memcpy(w, reinterpret_cast<const char*>(&q) + f.offset, bytes);
+      w += bytes;
+    }
+  }
+  const std::string header = pcl::PCDWriter::generateHeader(cloud) + "DATA binary\n";
+  write_checked(path, "PCD", [&](std::ostream& out) {
+    out << header;
+    out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    return static_cast<bool>(out);
+  });
 }
 
 std::vector<MapPoint> read_map_pcd(const std::string& path) {
@@ -408,13 +454,11 @@ octomap::OcTree& OccupancyMapBuilder::tree() {
 }
 
 void OccupancyMapBuilder::write_bt(const std::string& path) {
-  ensure_parent(path);
   tree();
-  if (!tree_->writeBinary(path)) throw core::Error(path, "cannot write OctoMap binary tree");
+  write_checked(path, "OctoMap binary tree", [&](std::ostream& out) { return tree_->writeBinary(out); });
 }
 
 void write_color_octree(const std::string& path, const std::vector<MapPoint>& points, double resolution_m) {
-  ensure_parent(path);
   octomap::ColorOcTree tree(resolution_m);
   for (const MapPoint& p : points) {
     if (!p.has_rgb) continue;
@@ -423,12 +467,13 @@ void write_color_octree(const std::string& path, const std::vector<MapPoint>& po
     // updateNode returns the leaf: no second search to colour it.
     tree.updateNode(key, true, /*lazy_eval=*/true)->setColor(p.rgb[0], p.rgb[1], p.rgb[2]);
   }
-  tree.updateInnerOccupancy();
-  if (!tree.write(path)) throw core::Error(path, "cannot write OctoMap ColorOcTree");
+  // ColorOcTree's updateInnerOccupancy dereferences the root: an empty tree (no coloured
+  // point) has none, and is written as a valid tree without nodes.
+  if (tree.getRoot() != nullptr) tree.updateInnerOccupancy();
+  write_checked(path, "OctoMap ColorOcTree", [&](std::ostream& out) { return tree.write(out); });
 }
 
 void write_thermal_octree(const std::string& path, const std::vector<MapPoint>& points, double resolution_m) {
-  ensure_parent(path);
   ThermalOcTree tree(resolution_m);
   for (const MapPoint& p : points) {
     if (std::isnan(p.temperature_k)) continue;
@@ -437,7 +482,7 @@ void write_thermal_octree(const std::string& path, const std::vector<MapPoint>& 
     tree.updateNode(key, true, /*lazy_eval=*/true)->set_temperature_k(p.temperature_k);
   }
   tree.update_inner_nodes();
-  if (!tree.write(path)) throw core::Error(path, "cannot write ThermalOcTree");
+  write_checked(path, "ThermalOcTree", [&](std::ostream& out) { return tree.write(out); });
 }
 
 }  // namespace rgbdt::rgbdt_map

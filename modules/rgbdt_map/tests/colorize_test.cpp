@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -214,6 +216,36 @@ TEST(Colorize, CountsWithoutATemperatureLeavePointsUncoloured) {
             proj.visible);
   for (const float t : none.temperature_k) EXPECT_TRUE(std::isnan(t));
   EXPECT_EQ(std::string(to_string(ColorStatus::kNoTemperature)), "no_temperature");
+}
+
+// A frame of another size than the camera's: the projected pixels address other scene
+// points there (a half-size thermal frame gave 7.3 K instead of 0.1 K mean error), so
+// sampling refuses it, naming both sizes.
+TEST(Colorize, FramesOfAnotherSizeThanTheCameraAreRefused) {
+  const test::Scene scene = test::box_wall_scene();
+  const Rig rig = make_rig();
+  const cloud::Cloud cloud = test::scan_tilt(scene, {});
+  const test::RenderedView thermal = test::render(scene, rig.thermal.camera, rig.T_lidar_thermal, kKelvinPerCount);
+  const CameraProjection proj = project_with_occlusion(cloud, true, 0.0, rig.thermal, 0.0, nullptr);
+  ASSERT_GT(proj.visible, 1000u);
+  EXPECT_EQ(proj.image_width, rig.thermal.camera.width());
+  EXPECT_EQ(proj.image_height, rig.thermal.camera.height());
+  cv::Mat half;
+  cv::resize(thermal.counts, half, cv::Size(thermal.counts.cols / 2, thermal.counts.rows / 2), 0, 0, cv::INTER_NEAREST);
+  const auto lut = linear_thermal_lut(kKelvinPerCount, 0.0);
+  EXPECT_EQ(sample_temperature(proj, thermal.counts, lut).colored, proj.visible);
+  try {
+    sample_temperature(proj, half, lut);
+    FAIL() << "a half-size thermal frame was sampled";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(std::to_string(half.cols) + "x" + std::to_string(half.rows)), std::string::npos) << what;
+    EXPECT_NE(what.find(std::to_string(thermal.counts.cols) + "x" + std::to_string(thermal.counts.rows)),
+              std::string::npos) << what;
+  }
+  const CameraProjection rgb_proj = project_with_occlusion(cloud, true, 0.0, rig.rgb, 0.0, nullptr);
+  const cv::Mat small_rgb(rig.rgb.camera.height() / 2, rig.rgb.camera.width() / 2, CV_8UC3, cv::Scalar(1, 2, 3));
+  EXPECT_THROW(sample_rgb(rgb_proj, small_rgb), std::invalid_argument);
 }
 
 TEST(Colorize, CloudWithoutRingsFallsBackToPointSplats) {

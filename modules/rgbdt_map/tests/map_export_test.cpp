@@ -3,9 +3,13 @@
 #include <octomap/ColorOcTree.h>
 #include <octomap/OcTree.h>
 
+#include <sys/resource.h>
+
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 
 #include "rgbdt/core/error.hpp"
@@ -291,4 +295,99 @@ TEST(Export, ThermalOcTreeIsRegisteredAndReadsBack) {
   const float root = thermal->getRoot()->temperature_k();
   EXPECT_GT(root, 280.0f);
   EXPECT_LT(root, 280.0f + 0.37f * 50);
+}
+
+// A map where no point took a colour (a thermal-only or LIDAR-only rig): the ColorOcTree
+// is empty, and is written as a valid tree without nodes (octomap's ColorOcTree
+// dereferences the missing root when asked to update its inner nodes).
+TEST(Export, ColorOcTreeOfAMapWithoutColourIsAnEmptyTree) {
+  const auto dir = temp_dir();
+  auto points = sample_points();
+  for (MapPoint& p : points) p.has_rgb = false;
+  write_color_octree((dir / "map_rgb.ot").string(), points, 0.05);
+  std::unique_ptr<octomap::AbstractOcTree> tree(octomap::AbstractOcTree::read((dir / "map_rgb.ot").string()));
+  ASSERT_NE(tree, nullptr);
+  auto* color = dynamic_cast<octomap::ColorOcTree*>(tree.get());
+  ASSERT_NE(color, nullptr);
+  EXPECT_EQ(color->size(), 0u);
+  for (MapPoint& p : points) p.temperature_k = std::numeric_limits<float>::quiet_NaN();
+  write_thermal_octree((dir / "map_thermal.ot").string(), points, 0.05);
+  std::unique_ptr<octomap::AbstractOcTree> thermal(octomap::AbstractOcTree::read((dir / "map_thermal.ot").string()));
+  ASSERT_NE(dynamic_cast<ThermalOcTree*>(thermal.get()), nullptr);
+  EXPECT_EQ(thermal->size(), 0u);
+}
+
+namespace {
+
+/// A file size limit (RLIMIT_FSIZE) for the current scope: writes beyond it fail with EFBIG
+/// as on a full disk (SIGXFSZ ignored, as a write error instead of a signal).
+class FileSizeLimit {
+ public:
+  explicit FileSizeLimit(rlim_t bytes) {
+    ::getrlimit(RLIMIT_FSIZE, &saved_);
+    old_handler_ = std::signal(SIGXFSZ, SIG_IGN);
+    rlimit limit = saved_;
+    limit.rlim_cur = bytes;
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+  }
+  ~FileSizeLimit() {
+    ::setrlimit(RLIMIT_FSIZE, &saved_);
+    std::signal(SIGXFSZ, old_handler_);
+  }
+
+ private:
+  rlimit saved_{};
+  void (*old_handler_)(int) = SIG_DFL;
+};
+
+std::vector<MapPoint> many_points(int n) {
+  std::vector<MapPoint> points;
+  for (int i = 0; i < n; ++i) {
+    MapPoint p;
+    p.position_m = Eigen::Vector3f(0.1f * (i % 40), 0.1f * ((i / 40) % 40), 0.1f * (i / 1600));
+    p.rgb = {static_cast<std::uint8_t>(i), 200, 7};
+    p.has_rgb = true;
+    p.temperature_k = 280.0f + 0.01f * i;
+    points.push_back(p);
+  }
+  return points;
+}
+
+}  // namespace
+
+// Every map writer on a full disk (here: a file size limit, which works as root too)
+// throws an error naming the final path, and leaves neither that file nor a temporary one.
+TEST(Export, WritersOnAFullDiskThrowNamingTheFileAndLeaveNothing) {
+  const auto dir = temp_dir();
+  const auto points = many_points(8000);  // every file > 4 kB
+  OccupancyMapBuilder occupancy(OccupancyOptions{});
+  std::vector<Eigen::Vector3f> scan;
+  for (const MapPoint& p : points) scan.push_back(p.position_m + Eigen::Vector3f(3.0f, 0.0f, 0.0f));
+  occupancy.insert_scan(scan, Eigen::Vector3d::Zero());
+  const std::vector<std::pair<std::string, std::function<void(const std::string&)>>> writers = {
+      {"map.ply", [&](const std::string& p) { write_ply(p, points); }},
+      {"map.pcd", [&](const std::string& p) { write_pcd(p, points); }},
+      {"map.bt", [&](const std::string& p) { occupancy.write_bt(p); }},
+      {"map_rgb.ot", [&](const std::string& p) { write_color_octree(p, points, 0.05); }},
+      {"map_thermal.ot", [&](const std::string& p) { write_thermal_octree(p, points, 0.05); }},
+  };
+  for (const auto& [name, write] : writers) {
+    const std::string path = (dir / name).string();
+    {
+      FileSizeLimit limit(4 * 1024);
+      try {
+        write(path);
+        ADD_FAILURE() << name << ": no error on a full disk";
+      } catch (const rgbdt::core::Error& e) {
+        EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+      }
+    }
+    EXPECT_FALSE(fs::exists(path)) << name << " left half-written";
+    // Without the limit the same call writes the whole file.
+    write(path);
+    EXPECT_GT(fs::file_size(path), 4u * 1024u) << name;
+  }
+  std::vector<std::string> left;
+  for (const auto& entry : fs::directory_iterator(dir)) left.push_back(entry.path().filename().string());
+  EXPECT_EQ(left.size(), writers.size()) << "temporary files left behind";
 }

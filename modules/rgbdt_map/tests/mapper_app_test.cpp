@@ -6,7 +6,14 @@
 #include <octomap/ColorOcTree.h>
 #include <octomap/OcTree.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -62,7 +69,12 @@ struct Camera {
   double period_s;
 };
 
-void write_session(const fs::path& dir, int tilts) {
+struct SessionOptions {
+  std::vector<std::string> cameras = {"rgb", "thermal"};
+  double kelvin_per_count = kKelvinPerCount;
+};
+
+void write_session(const fs::path& dir, int tilts, const SessionOptions& options = {}) {
   const test::Scene scene = test::structured_scene();
   fs::create_directories(dir / "clouds");
   fs::create_directories(dir / "rgb");
@@ -90,6 +102,7 @@ void write_session(const fs::path& dir, int tilts) {
   session.lidar.clouds = (dir / "clouds/index.csv").string();
   const double duration_s = 0.6 * tilts;
   for (const Camera& cam : cameras) {
+    if (std::find(options.cameras.begin(), options.cameras.end(), cam.name) == options.cameras.end()) continue;
     std::vector<core::TimedFile> frames;
     for (int i = 0; i * cam.period_s <= duration_s; ++i) {
       const double t = i * cam.period_s;
@@ -109,7 +122,8 @@ void write_session(const fs::path& dir, int tilts) {
     entry.intrinsics = (dir / (cam.name + ".yaml")).string();
     entry.frames = (dir / cam.name / "index.csv").string();
     if (cam.name == "thermal") {
-      entry.radiometry = core::RadiometrySpec{"linear", {{"kelvin_per_count", kKelvinPerCount}, {"offset_k", 0.0}}};
+      entry.radiometry =
+          core::RadiometrySpec{"linear", {{"kelvin_per_count", options.kelvin_per_count}, {"offset_k", 0.0}}};
     }
     session.cameras[cam.name] = entry;
   }
@@ -119,6 +133,24 @@ void write_session(const fs::path& dir, int tilts) {
   for (double t = -0.1; t <= duration_s + 0.2; t += 0.05) truth.push_back({kStartS + t, truth_at(t)});
   write_trajectory_csv((dir / "ground_truth/trajectory.csv").string(), truth);
   std::ofstream(dir / "ground_truth.yaml") << "trajectory: ground_truth/trajectory.csv\n";
+}
+
+std::string read_text(const fs::path& file) {
+  std::ifstream in(file);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
+/// Runs rgbdt_mapper on dir/session with its true calibration into dir/out_name; the log
+/// goes to dir/out_name.txt. Returns the exit code (-1 when it ended by a signal).
+int run_mapper(const fs::path& dir, const std::string& out_name, const std::string& extra = "",
+               const std::string& prefix = "") {
+  const std::string command = prefix + std::string(std::getenv("RGBDT_BIN_DIR")) + "/rgbdt_mapper " +
+                              (dir / "session").string() + " --calib " + (dir / "session/true_calib").string() +
+                              " --out " + (dir / out_name).string() + " " + extra + " > " +
+                              (dir / (out_name + ".txt")).string() + " 2>&1";
+  const int status = std::system(command.c_str());  // a signal shows as 128 + its number
+  if (status == -1 || !WIFEXITED(status)) return -1;
+  return WEXITSTATUS(status);
 }
 
 double json_value(const std::string& json, const std::string& key) {
@@ -333,4 +365,233 @@ TEST(MapperApp, FailsWithAClearMessageOnAMissingCalibration) {
   const std::string log_icp((std::istreambuf_iterator<char>(in_icp)), {});
   EXPECT_NE(log_icp.find("--accurate needs GICP's covariances"), std::string::npos) << log_icp;
   EXPECT_FALSE(fs::exists(dir / "out_icp"));
+}
+
+// Valid but unusual rigs map without crashing: thermal only, RGB only, no camera at all
+// (a LIDAR-only map), an RGB index with only its header or with times outside the LIDAR's
+// span. Geometry outputs are written; the colour outputs without colour are not, and the
+// summary says which and why.
+TEST(MapperApp, UnusualRigsMapAndSayWhichColourOutputsAreMissing) {
+  const fs::path base = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppUnusualRigs";
+  fs::remove_all(base);
+  struct Case {
+    std::string name;
+    std::vector<std::string> cameras;
+    std::string rgb_index;  ///< replaces rgb/index.csv when not empty
+    bool rgb_colours, thermal_colours;
+  };
+  const std::vector<Case> cases = {
+      {"thermal_only", {"thermal"}, "", false, true},
+      {"rgb_only", {"rgb"}, "", true, false},
+      {"no_camera", {}, "", false, false},
+      {"rgb_header_only", {"rgb", "thermal"}, "time_s,file\n", false, true},
+      {"rgb_outside_lidar_time", {"rgb", "thermal"}, "time_s,file\n1000.0,0.png\n1000.2,1.png\n", false, true},
+      // what `rgbdt_sim mapping --no-images` writes: both cameras with `frames: ""`
+      {"no_images", {"rgb", "thermal"}, "", false, false},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const fs::path dir = base / c.name;
+    SessionOptions options;
+    options.cameras = c.cameras;
+    write_session(dir / "session", 3, options);
+    if (!c.rgb_index.empty()) std::ofstream(dir / "session/rgb/index.csv") << c.rgb_index;
+    if (c.name == "no_images") {
+      std::string yaml = read_text(dir / "session/session.yaml");
+      for (const std::string index : {"rgb/index.csv", "thermal/index.csv"}) {
+        ASSERT_NE(yaml.find(index), std::string::npos) << yaml;
+        yaml.replace(yaml.find(index), index.size(), "\"\"");
+      }
+      std::ofstream(dir / "session/session.yaml") << yaml;
+    }
+    ASSERT_EQ(run_mapper(dir, "out"), 0) << read_text(dir / "out.txt");
+    const std::string json = read_text(dir / "out/summary.json");
+    EXPECT_EQ(json_value(json, "clouds"), 3) << json;
+    for (const char* name : {"map.ply", "map.pcd", "map.bt", "trajectory.csv"}) {
+      EXPECT_TRUE(fs::is_regular_file(dir / "out" / name)) << name;
+    }
+    EXPECT_GT(read_ply((dir / "out/map.ply").string()).size(), 1000u);
+    EXPECT_EQ(fs::exists(dir / "out/map_rgb.ot"), c.rgb_colours);
+    EXPECT_EQ(fs::exists(dir / "out/render_rgb_top.png"), c.rgb_colours);
+    EXPECT_EQ(fs::exists(dir / "out/map_thermal.ot"), c.thermal_colours);
+    EXPECT_EQ(fs::exists(dir / "out/render_thermal_top.png"), c.thermal_colours);
+    const auto not_written_at = json.find("\"outputs_not_written\"");
+    ASSERT_NE(not_written_at, std::string::npos) << json;
+    const std::string not_written = json.substr(not_written_at);
+    EXPECT_EQ(not_written.find("map_rgb.ot") != std::string::npos, !c.rgb_colours) << json;
+    EXPECT_EQ(not_written.find("map_thermal.ot") != std::string::npos, !c.thermal_colours) << json;
+    if (c.cameras.empty()) {
+      EXPECT_NE(not_written.find("no RGB camera in the session"), std::string::npos) << json;
+    }
+    const auto rgb_at = json.find("\"rgb\": {");
+    if (std::find(c.cameras.begin(), c.cameras.end(), "rgb") != c.cameras.end()) {
+      ASSERT_NE(rgb_at, std::string::npos) << json;
+      EXPECT_EQ(json_value(json.substr(rgb_at), "colored_points") > 0, c.rgb_colours) << json;
+      if (!c.rgb_colours) {
+        EXPECT_EQ(json_value(json.substr(rgb_at), "clouds_without_frame"), 3) << json;
+      }
+    }
+    if (c.thermal_colours) {
+      const auto thermal_at = json.find("\"thermal\": {");
+      ASSERT_NE(thermal_at, std::string::npos) << json;
+      EXPECT_GT(json_value(json.substr(thermal_at), "colored_fraction_in_view"), 0.9) << json;
+    }
+  }
+}
+
+// The preflight checks every file the session names before any registration, lists every
+// problem at once, exits 1 and writes nothing: frames of another size than camera_info or
+// not 16-bit on the thermal camera (they gave 7.3 K and 307 K mean errors), a missing
+// frame, a missing cloud.
+TEST(MapperApp, PreflightListsEveryBadFileBeforeAnyWork) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppPreflight";
+  fs::remove_all(dir);
+  write_session(dir / "session", 3);
+  const fs::path thermal = dir / "session/thermal";
+  const cv::Mat counts = cv::imread((thermal / "0.png").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(counts.type(), CV_16UC1);
+  cv::Mat half, eight_bit;
+  cv::resize(counts, half, cv::Size(counts.cols / 2, counts.rows / 2));
+  counts.convertTo(eight_bit, CV_8U, 1.0 / 64);
+  cv::imwrite((thermal / "0.png").string(), half);
+  cv::imwrite((thermal / "1.png").string(), eight_bit);
+  fs::remove(dir / "session/rgb/2.png");
+  fs::remove(dir / "session/clouds/1.pcd");
+  EXPECT_EQ(run_mapper(dir, "out"), 1);
+  const std::string log = read_text(dir / "out.txt");
+  EXPECT_NE(log.find((thermal / "0.png").string() + ": is 80x64 px 16-bit grey, expected camera 'thermal''s "
+                                                      "160x128 px"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find((thermal / "1.png").string() + ": is 160x128 px 8-bit grey, expected 16-bit grey raw counts"),
+            std::string::npos)
+      << log;
+  EXPECT_NE(log.find((dir / "session/rgb/2.png").string() + ": missing"), std::string::npos) << log;
+  EXPECT_NE(log.find((dir / "session/clouds/1.pcd").string() + ": missing"), std::string::npos) << log;
+  EXPECT_NE(log.find("4 problems"), std::string::npos) << log;
+  EXPECT_EQ(log.find("[register"), std::string::npos) << "registration ran before the preflight:\n" << log;
+  EXPECT_FALSE(fs::exists(dir / "out"));
+}
+
+// Sessions that are wrong, not unusual: NaN in an extrinsics translation, `frames:` naming
+// a folder. Errors naming the file, before any work, nothing written.
+TEST(MapperApp, NonFiniteExtrinsicsAndAFolderAsFrameIndexAreErrors) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppBadFiles";
+  fs::remove_all(dir);
+  write_session(dir / "session", 2);
+  const fs::path extrinsics = dir / "session/true_calib/extrinsics_rgb.yaml";
+  const std::string good = read_text(extrinsics);
+  core::Extrinsics nan_extrinsics = core::read_extrinsics(extrinsics.string());
+  nan_extrinsics.T_parent_child.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  core::write_extrinsics(extrinsics.string(), nan_extrinsics);
+  EXPECT_EQ(run_mapper(dir, "out_nan"), 1);
+  std::string log = read_text(dir / "out_nan.txt");
+  EXPECT_NE(log.find(extrinsics.string()), std::string::npos) << log;
+  EXPECT_EQ(log.find("[register"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir / "out_nan"));
+  std::ofstream(extrinsics) << good;
+
+  const std::string session_yaml = read_text(dir / "session/session.yaml");
+  std::string folder_yaml = session_yaml;
+  const std::string index = "rgb/index.csv";
+  ASSERT_NE(folder_yaml.find(index), std::string::npos) << folder_yaml;
+  folder_yaml.replace(folder_yaml.find(index), index.size(), "rgb");
+  std::ofstream(dir / "session/session.yaml") << folder_yaml;
+  EXPECT_EQ(run_mapper(dir, "out_folder"), 1);
+  log = read_text(dir / "out_folder.txt");
+  EXPECT_NE(log.find((dir / "session/rgb").string() + ": is a folder, expected camera 'rgb''s frame index"),
+            std::string::npos)
+      << log;
+  EXPECT_FALSE(fs::exists(dir / "out_folder"));
+}
+
+// kelvin_per_count: 1e300 maps counts to infinite temperatures: refused before any work
+// (it wrote "mean": inf into summary.json, which is not JSON).
+TEST(MapperApp, RadiometryGivingInfiniteTemperaturesIsRefused) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppInfiniteKelvin";
+  fs::remove_all(dir);
+  SessionOptions options;
+  options.kelvin_per_count = 1e300;
+  write_session(dir / "session", 2, options);
+  EXPECT_EQ(run_mapper(dir, "out"), 1);
+  const std::string log = read_text(dir / "out.txt");
+  EXPECT_NE(log.find("session.yaml"), std::string::npos) << log;
+  EXPECT_NE(log.find("expected finite temperatures"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir / "out/summary.json"));
+}
+
+// Writes that fail (a file size limit: EFBIG as on a full disk, and it works as root) end
+// with exit 1 and an error naming the file; summary.json, the completion mark, is not
+// written, and the stale one of an earlier run in the same OUT is gone. An output path
+// that cannot be replaced (a folder) is named too.
+TEST(MapperApp, FailedWritesNameTheFileAndLeaveNoSummary) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppFullDisk";
+  fs::remove_all(dir);
+  write_session(dir / "session", 3);
+  ASSERT_EQ(run_mapper(dir, "out"), 0) << read_text(dir / "out.txt");
+  ASSERT_TRUE(fs::exists(dir / "out/summary.json"));
+  ASSERT_GT(fs::file_size(dir / "out/map.ply"), 64u * 1024u);
+  // 64 kB: trajectory.csv fits, map.ply does not.
+  EXPECT_EQ(run_mapper(dir, "out", "", "ulimit -f 64; "), 1);
+  const std::string log = read_text(dir / "out.txt");
+  EXPECT_NE(log.find((dir / "out/map.ply").string()), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir / "out/summary.json")) << log;
+  EXPECT_FALSE(fs::exists(dir / "out/map.ply")) << "the earlier run's or a partial map.ply is left";
+  for (const auto& entry : fs::directory_iterator(dir / "out")) {
+    EXPECT_NE(entry.path().filename().string()[0], '.') << "temporary file left: " << entry.path();
+  }
+
+  fs::remove_all(dir / "out");
+  fs::create_directories(dir / "out/summary.json/inside");
+  EXPECT_EQ(run_mapper(dir, "out"), 1);
+  EXPECT_NE(read_text(dir / "out.txt").find((dir / "out/summary.json").string()), std::string::npos)
+      << read_text(dir / "out.txt");
+}
+
+// Ctrl-C: the mapper stops at the next cloud, writes nothing half-done, says what is
+// complete and exits 130; the summary.json of an earlier run in the same OUT is gone, so
+// the new, incomplete maps cannot pass for a finished run.
+TEST(MapperApp, InterruptStopsCleanlyWithoutACompletionMark) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppInterrupt";
+  fs::remove_all(dir);
+  write_session(dir / "session", 12);
+  ASSERT_EQ(run_mapper(dir, "out", "--max-clouds 2"), 0) << read_text(dir / "out.txt");
+  ASSERT_TRUE(fs::exists(dir / "out/summary.json"));
+
+  const std::string log_path = (dir / "interrupted.txt").string();
+  const std::string command = "exec " + std::string(std::getenv("RGBDT_BIN_DIR")) + "/rgbdt_mapper " +
+                              (dir / "session").string() + " --calib " + (dir / "session/true_calib").string() +
+                              " --out " + (dir / "out").string() + " > " + log_path + " 2>&1";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Once the first cloud is registered, Ctrl-C.
+  const auto start = std::chrono::steady_clock::now();
+  while (read_text(log_path).find("[register 1/12]") == std::string::npos &&
+         std::chrono::steady_clock::now() - start < std::chrono::seconds(60)) {
+    ::usleep(2000);
+  }
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  const std::string log = read_text(log_path);
+  ASSERT_TRUE(WIFEXITED(status)) << "ended by signal " << WTERMSIG(status) << "\n" << log;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << log;
+  EXPECT_NE(log.find("rgbdt_mapper: interrupted"), std::string::npos) << log;
+  EXPECT_FALSE(fs::exists(dir / "out/summary.json")) << log;
+  // What is there is complete: no empty file, no temporary file, and a trajectory has all
+  // 12 poses when it is there at all; the earlier run's maps are gone.
+  for (const auto& entry : fs::directory_iterator(dir / "out")) {
+    const std::string name = entry.path().filename().string();
+    EXPECT_NE(name[0], '.') << "temporary file left: " << name;
+    EXPECT_GT(fs::file_size(entry.path()), 0u) << name;
+    EXPECT_NE(log.find(name), std::string::npos) << name << " is not named as complete:\n" << log;
+  }
+  if (fs::exists(dir / "out/trajectory.csv")) {
+    EXPECT_EQ(read_trajectory_csv((dir / "out/trajectory.csv").string()).size(), 12u);
+  }
+  EXPECT_FALSE(fs::exists(dir / "out/map.ply") && !fs::exists(dir / "out/trajectory.csv"));
 }

@@ -97,6 +97,9 @@ struct CameraProjection {
   std::vector<ColorStatus> status;        ///< kColored = visible
   std::size_t visible = 0;
   bool meshed = false;                    ///< true when the scan-line mesh was used
+  /// The camera's image size [px] the pixels refer to (0 when unknown): sampling an image
+  /// of another size throws instead of reading the wrong pixels.
+  int image_width = 0, image_height = 0;
 };
 
 /// Projects every point of `cloud` into `camera` at the image's time and decides its
@@ -129,7 +132,8 @@ struct Temperatures {
 /// bilinearly (interpolating temperatures, not counts, stays right for non-linear
 /// radiometry). `counts` is CV_16UC1 (raw counts) or CV_8UC1. A point whose neighbouring
 /// counts have no temperature (NaN in the LUT: outside a Planck curve's domain) gets
-/// kNoTemperature.
+/// kNoTemperature. Throws std::invalid_argument if the image type or size does not match
+/// the camera.
 Temperatures sample_temperature(const CameraProjection& projection, const cv::Mat& counts,
                                 const std::vector<float>& lut_k);
 

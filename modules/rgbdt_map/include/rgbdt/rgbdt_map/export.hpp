@@ -8,8 +8,10 @@
 ///   - OctoMap: `map.bt` occupancy built by ray insertion from the sensor origin of every
 ///     scan (free space is known), `map_rgb.ot` (octomap::ColorOcTree) and
 ///     `map_thermal.ot` (ThermalOcTree, see thermal_octree.hpp).
-/// Every writer throws rgbdt::core::Error naming the file when it cannot write; readers
-/// name the file and what was expected.
+/// Every writer writes a temporary sibling, checks every write and the close, and renames
+/// it into place: it throws rgbdt::core::Error naming the file when it cannot write (a full
+/// disk included) and leaves no partial file. Readers name the file and what was expected.
+/// An empty map (or one without any colour) gives valid trees without nodes.
 #include <octomap/OcTree.h>
 
 #include <Eigen/Core>
