@@ -43,13 +43,15 @@ function(rgbdt_add_module name)
   set_property(GLOBAL APPEND PROPERTY RGBDT_INSTALLED_MODULES ${name})
 endfunction()
 
-# rgbdt_add_tests(<module> file_test.cpp ... [LIBS ...])
-# One GoogleTest executable per file, named after the file, registered with CTest.
+# rgbdt_add_tests(<module> file_test.cpp ... [LIBS ...] [LABELS ...])
+# One GoogleTest executable per file, named after the file, registered with CTest and
+# labelled with the module's name and LABELS. The label `slow` marks tests that take
+# minutes in Release: CI runs them once, in Release, not again under the sanitizers.
 function(rgbdt_add_tests module)
   if(NOT RGBDT_BUILD_TESTS)
     return()
   endif()
-  cmake_parse_arguments(ARG "" "" "LIBS" ${ARGN})
+  cmake_parse_arguments(ARG "" "" "LIBS;LABELS" ${ARGN})
   foreach(file IN LISTS ARG_UNPARSED_ARGUMENTS)
     get_filename_component(test_name ${file} NAME_WE)
     add_executable(${test_name} ${file})
@@ -62,7 +64,7 @@ function(rgbdt_add_tests module)
       RGBDT_BINARY_DIR="${PROJECT_BINARY_DIR}")
     rgbdt_apply_standard(${test_name})
     gtest_discover_tests(${test_name} DISCOVERY_TIMEOUT 60
-      PROPERTIES LABELS ${module} ENVIRONMENT "RGBDT_BIN_DIR=${PROJECT_BINARY_DIR}/bin")
+      PROPERTIES LABELS "${module};${ARG_LABELS}" ENVIRONMENT "RGBDT_BIN_DIR=${PROJECT_BINARY_DIR}/bin")
   endforeach()
 endfunction()
 

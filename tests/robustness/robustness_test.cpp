@@ -1,0 +1,511 @@
+// Every app on broken, unusual and hostile input (issue "Never silently wrong").
+//
+// Each case copies a pristine simulated session, breaks one thing in it, runs the app as a
+// user would and checks the contract every app keeps on bad input:
+//   - it ends by itself (no signal, no hang) with an exit code 1..127,
+//   - its message names the file at fault,
+//   - it leaves no output that looks complete: no extrinsics YAML, and no summary.json or
+//     report.md unless it says FAIL,
+//   - it stays within a memory cap (RLIMIT_AS; not under AddressSanitizer, which reserves
+//     terabytes of address space for its shadow memory).
+// Valid but unusual sessions (thermal only, no cameras) must instead succeed.
+//
+// The pristine sessions come from the fixture test robustness_sessions (rgbdt_sim), run once
+// before these tests by ctest.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "rgbdt/cloud/pcd_io.hpp"
+#include "rgbdt/test/process.hpp"
+#include "rgbdt/test/test_util.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kUnderAsan = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kUnderAsan = true;
+#else
+constexpr bool kUnderAsan = false;
+#endif
+#else
+constexpr bool kUnderAsan = false;
+#endif
+
+// The apps load PCL, VTK, MRPT and OpenCV: about 1 GB of address space before any work.
+// 3 GB leaves room for real work on the small sessions and stops a runaway allocation of a
+// crafted header long before the machine notices.
+constexpr rlim_t kAddressSpaceCap = 3ull << 30;
+constexpr int kTimeoutS = 180;
+
+struct RunResult {
+  bool exited = false;
+  int exit_code = -1;
+  int signal = 0;
+  bool timed_out = false;
+  std::string output;  // stdout and stderr
+  std::string command;
+};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+void write_bytes(const fs::path& p, const std::string& bytes) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  ASSERT_TRUE(out.good()) << p;
+}
+
+// Runs <bin>/<app> args... under the memory cap and a wall-clock limit.
+RunResult run_app(const std::string& app, const std::vector<std::string>& args, const fs::path& log) {
+  RunResult r;
+  const std::string program = rgbdt::test::built_program(app);
+  r.command = program;
+  for (const auto& a : args) r.command += " " + a;
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (!kUnderAsan) {
+      const rlimit cap{kAddressSpaceCap, kAddressSpaceCap};
+      ::setrlimit(RLIMIT_AS, &cap);
+    }
+    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fd, 1);
+    ::dup2(fd, 2);
+    std::vector<std::string> all = {program};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (auto& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execv(program.c_str(), argv.data());
+    ::_exit(127);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kTimeoutS);
+  int status = 0;
+  while (true) {
+    const pid_t done = ::waitpid(pid, &status, WNOHANG);
+    if (done == pid) break;
+    if (std::chrono::steady_clock::now() > deadline) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      r.timed_out = true;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  if (WIFEXITED(status)) {
+    r.exited = true;
+    r.exit_code = WEXITSTATUS(status);
+  } else if (WIFSIGNALED(status)) {
+    r.signal = WTERMSIG(status);
+  }
+  r.output = slurp(log);
+  return r;
+}
+
+fs::path pristine(const std::string& which) {
+  const fs::path p = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "robustness_sessions" / which;
+  if (!fs::exists(p / "session.yaml")) {
+    ADD_FAILURE() << "missing " << p << ": run the fixture test robustness_sessions first";
+  }
+  return p;
+}
+
+// A fresh copy of a pristine session for one case.
+fs::path copy_session(const std::string& which, const std::string& name) {
+  const fs::path dst = rgbdt::test::temp_path(name);
+  fs::create_directories(dst.parent_path());
+  fs::copy(pristine(which), dst, fs::copy_options::recursive);
+  return dst;
+}
+
+void replace_in_file(const fs::path& p, const std::string& from, const std::string& to) {
+  std::string text = slurp(p);
+  const auto at = text.find(from);
+  ASSERT_NE(at, std::string::npos) << "'" << from << "' not in " << p;
+  text.replace(at, from.size(), to);
+  write_bytes(p, text);
+}
+
+void replace_regex_in_file(const fs::path& p, const std::string& pattern, const std::string& to) {
+  const std::string text = slurp(p);
+  const std::string changed = std::regex_replace(text, std::regex(pattern), to,
+                                                 std::regex_constants::format_first_only);
+  ASSERT_NE(changed, text) << "/" << pattern << "/ not in " << p;
+  write_bytes(p, changed);
+}
+
+// The outputs that tell a user (or a script) a run finished.
+std::vector<fs::path> complete_looking_outputs(const fs::path& out) {
+  std::vector<fs::path> found;
+  if (!fs::exists(out)) return found;
+  for (const auto& e : fs::directory_iterator(out)) {
+    const std::string name = e.path().filename().string();
+    // A report that says the run failed is a result too, and an honest one.
+    if ((name == "summary.json" || name == "report.md") &&
+        slurp(e.path()).find("FAIL") == std::string::npos) {
+      found.push_back(e.path());
+    }
+    if (name.rfind("extrinsics_", 0) == 0 && name.find(".rejected.") == std::string::npos &&
+        e.path().extension() == ".yaml") {
+      found.push_back(e.path());
+    }
+  }
+  return found;
+}
+
+// The contract on bad input.
+void expect_clean_failure(const RunResult& r, const std::string& names, const fs::path& out) {
+  SCOPED_TRACE(r.command);
+  EXPECT_FALSE(r.timed_out) << "ran past " << kTimeoutS << " s\n" << r.output;
+  EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << "\n" << r.output;
+  ASSERT_TRUE(r.exited);
+  EXPECT_GE(r.exit_code, 1) << r.output;
+  EXPECT_LE(r.exit_code, 127) << r.output;
+  EXPECT_NE(r.output.find(names), std::string::npos)
+      << "the message does not name '" << names << "':\n" << r.output;
+  for (const auto& p : complete_looking_outputs(out)) {
+    ADD_FAILURE() << "a failed run left " << p << ", which looks like a finished result";
+  }
+}
+
+// The contract on valid but unusual input.
+void expect_success(const RunResult& r, const fs::path& out) {
+  SCOPED_TRACE(r.command);
+  EXPECT_FALSE(r.timed_out) << r.output;
+  EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << "\n" << r.output;
+  ASSERT_TRUE(r.exited);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}
+
+void expect_valid_summary_json(const fs::path& summary) {
+  ASSERT_TRUE(fs::exists(summary)) << summary;
+  const std::string text = slurp(summary);
+  // JSON has no inf or nan; a writer that prints them writes a file no parser reads.
+  EXPECT_EQ(std::regex_search(text, std::regex(R"(:\s*-?(inf|nan)\b)", std::regex::icase)), false)
+      << summary << ":\n" << text;
+}
+
+// ---------------------------------------------------------------- calibration sessions
+
+RunResult calibrate(const fs::path& session, const fs::path& out, const std::string& tag) {
+  return run_app("rgbdt_calibrate", {session.string(), "--out", out.string()},
+                 rgbdt::test::temp_path(tag + ".log"));
+}
+
+class Calibrate : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    session_ = copy_session("cal", "session");
+    out_ = rgbdt::test::temp_path("out");
+  }
+  RunResult run() { return calibrate(session_, out_, "calibrate"); }
+  fs::path session_, out_;
+};
+
+TEST_F(Calibrate, ZeroBytePcdIsAnErrorNamingIt) {
+  write_bytes(session_ / "clouds/000.pcd", "");
+  expect_clean_failure(run(), "000.pcd", out_);
+}
+
+TEST_F(Calibrate, RandomBytesPcdIsAnErrorNamingIt) {
+  std::mt19937 rng(7);
+  std::string bytes(4096, '\0');
+  for (auto& c : bytes) c = static_cast<char>(rng());
+  write_bytes(session_ / "clouds/001.pcd", bytes);
+  expect_clean_failure(run(), "001.pcd", out_);
+}
+
+std::string pcd_header(const std::string& data_kind, int points) {
+  std::ostringstream h;
+  h << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n"
+       "TYPE F F F\nCOUNT 1 1 1\nWIDTH "
+    << points << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << points << "\nDATA "
+    << data_kind << "\n";
+  return h.str();
+}
+
+std::string u32(std::uint32_t v) {
+  std::string s(4, '\0');
+  for (int i = 0; i < 4; ++i) s[i] = static_cast<char>((v >> (8 * i)) & 0xff);
+  return s;
+}
+
+TEST_F(Calibrate, CompressedPcdOfCompressedSizeZeroIsAnError) {
+  write_bytes(session_ / "clouds/000.pcd", pcd_header("binary_compressed", 1000) + u32(0) + u32(12000));
+  expect_clean_failure(run(), "000.pcd", out_);
+}
+
+TEST_F(Calibrate, CompressedPcdClaimingAHugeSizeIsRefusedBeforeAllocating) {
+  // 600 kB of data that claims to decompress to ~4 GB.
+  std::mt19937 rng(3);
+  std::string data(600000, '\0');
+  for (auto& c : data) c = static_cast<char>(rng());
+  write_bytes(session_ / "clouds/000.pcd", pcd_header("binary_compressed", 357913941) +
+                                               u32(600000) + u32(0xFFFFFFF0u) + data);
+  expect_clean_failure(run(), "000.pcd", out_);
+}
+
+TEST_F(Calibrate, CompressedPcdWithInflatedPointCountIsAnError) {
+  // A whole binary_compressed cloud whose WIDTH and POINTS claim 4x the points it holds:
+  // PCL only warns; the scrambled points must not reach the detector.
+  const auto loaded = rgbdt::cloud::load_pcd((session_ / "clouds/000.pcd").string());
+  const fs::path p = session_ / "clouds/000.pcd";
+  rgbdt::cloud::save_pcd(p.string(), *loaded.cloud, rgbdt::cloud::PcdFormat::kBinaryCompressed);
+  const std::string n = std::to_string(loaded.cloud->size());
+  const std::string n4 = std::to_string(4 * loaded.cloud->size());
+  replace_in_file(p, "WIDTH " + n + "\n", "WIDTH " + n4 + "\n");
+  replace_in_file(p, "POINTS " + n + "\n", "POINTS " + n4 + "\n");
+  expect_clean_failure(run(), "000.pcd", out_);
+}
+
+TEST_F(Calibrate, PrincipalPointOutsideTheImageIsAnError) {
+  replace_regex_in_file(session_ / "rgb.yaml", R"(data: \[1335\.2, 0, [0-9.]+,)", "data: [1335.2, 0, 99999,");
+  expect_clean_failure(run(), "rgb.yaml", out_);
+}
+
+TEST_F(Calibrate, NegativeDistortionRowsIsAnError) {
+  replace_in_file(session_ / "rgb.yaml", "  rows: 1\n  cols: 5", "  rows: -1\n  cols: 5");
+  expect_clean_failure(run(), "rgb.yaml", out_);
+}
+
+TEST_F(Calibrate, InfiniteRadiusIsAnError) {
+  replace_in_file(session_ / "session.yaml", "radius: 0.3", "radius: .inf");
+  expect_clean_failure(run(), "session.yaml", out_);
+}
+
+TEST_F(Calibrate, NegativeBoardSizeIsAnError) {
+  replace_in_file(session_ / "session.yaml", "board_size: [1.2, 1.2]", "board_size: [-1.2, 0]");
+  expect_clean_failure(run(), "session.yaml", out_);
+}
+
+TEST_F(Calibrate, DuplicateKeyIsAnError) {
+  replace_in_file(session_ / "session.yaml", "target: {type: circle_hole, radius: 0.3,",
+                  "target: {type: circle_hole, radius: 0.5, radius: 0.3,");
+  expect_clean_failure(run(), "radius", out_);
+}
+
+TEST_F(Calibrate, MissingImageIsFoundBeforeTheWork) {
+  fs::remove(session_ / "rgb/001.png");
+  const auto r = run();
+  expect_clean_failure(r, "001.png", out_);
+  // Preflight: nothing of the long work has started, so nothing at all is written.
+  EXPECT_FALSE(fs::exists(out_) && !fs::is_empty(out_)) << r.output;
+}
+
+TEST_F(Calibrate, ImageOfAnotherSizeThanItsCameraInfoIsAnError) {
+  const cv::Mat small(482, 644, CV_8UC1, cv::Scalar(128));
+  ASSERT_TRUE(cv::imwrite((session_ / "rgb/000.png").string(), small));
+  expect_clean_failure(run(), "000.png", out_);
+}
+
+TEST_F(Calibrate, HugePngHeaderIsRefusedBeforeDecoding) {
+  // A PNG whose IHDR claims 30000 x 30000 RGB pixels (2.7 GB decoded) and holds almost no data.
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  auto be32 = [](std::uint32_t v) {
+    std::string s(4, '\0');
+    for (int i = 0; i < 4; ++i) s[i] = static_cast<char>((v >> (24 - 8 * i)) & 0xff);
+    return s;
+  };
+  const std::string ihdr = "IHDR" + be32(30000) + be32(30000) + std::string("\x08\x02\x00\x00\x00", 5);
+  png += be32(13) + ihdr + be32(0);  // CRC not checked by the header reader's size test
+  png += be32(0) + "IEND" + be32(0xAE426082u);
+  write_bytes(session_ / "rgb/000.png", png);
+  expect_clean_failure(run(), "000.png", out_);
+}
+
+TEST_F(Calibrate, IntrinsicsNamingANonYamlFileNamesThePathNotItsContents) {
+  replace_in_file(session_ / "session.yaml", "rgb: {intrinsics: rgb.yaml}", "rgb: {intrinsics: clouds/000.pcd}");
+  const auto r = run();
+  expect_clean_failure(r, "000.pcd", out_);
+  EXPECT_EQ(r.output.find("Point Cloud Data"), std::string::npos)
+      << "the message quotes the file's contents:\n" << r.output;
+}
+
+TEST_F(Calibrate, LongCameraNameDoesNotCrash) {
+  const std::string name(100, 'c');
+  replace_in_file(session_ / "session.yaml", "  rgb: {intrinsics: rgb.yaml}", "  " + name + ": {intrinsics: rgb.yaml}");
+  replace_in_file(session_ / "session.yaml", "images: {rgb: rgb/000.png", "images: {" + name + ": rgb/000.png");
+  replace_in_file(session_ / "session.yaml", "images: {rgb: rgb/001.png", "images: {" + name + ": rgb/001.png");
+  const auto r = run();
+  EXPECT_EQ(r.signal, 0) << r.output;
+  EXPECT_FALSE(r.timed_out);
+  ASSERT_TRUE(r.exited);
+  if (r.exit_code != 0) {
+    EXPECT_NE(r.output.find(name.substr(0, 20)), std::string::npos) << r.output;
+  }
+}
+
+// ---------------------------------------------------------------- mapping sessions
+
+class Mapper : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    session_ = copy_session("map", "session");
+    out_ = rgbdt::test::temp_path("out");
+  }
+  RunResult run() {
+    return run_app("rgbdt_mapper",
+                   {session_.string(), "--calib", (session_ / "true_calib").string(), "--out",
+                    out_.string(), "--lidar", "clouds"},
+                   rgbdt::test::temp_path("mapper.log"));
+  }
+  fs::path yaml() const { return session_ / "session.yaml"; }
+  fs::path session_, out_;
+};
+
+TEST_F(Mapper, ThermalOnlyRigMaps) {
+  replace_regex_in_file(yaml(), R"(\n  rgb: \{[^\n]*\})", "");
+  const auto r = run();
+  expect_success(r, out_);
+  expect_valid_summary_json(out_ / "summary.json");
+}
+
+TEST_F(Mapper, NoCamerasMakesALidarOnlyMap) {
+  replace_regex_in_file(yaml(), R"(cameras:\n(  [^\n]*\n)+)", "cameras: {}\n");
+  const auto r = run();
+  expect_success(r, out_);
+  expect_valid_summary_json(out_ / "summary.json");
+}
+
+TEST_F(Mapper, RgbIndexWithOnlyItsHeaderMapsWithoutRgb) {
+  write_bytes(session_ / "rgb/index.csv", "time_s,file\n");
+  const auto r = run();
+  expect_success(r, out_);
+  expect_valid_summary_json(out_ / "summary.json");
+}
+
+TEST_F(Mapper, RgbFramesOutsideTheLidarSpanMapWithoutRgb) {
+  write_bytes(session_ / "rgb/index.csv", "time_s,file\n5000.0,00000.png\n5000.5,00001.png\n");
+  const auto r = run();
+  expect_success(r, out_);
+  expect_valid_summary_json(out_ / "summary.json");
+}
+
+TEST_F(Mapper, FramesNamingAFolderIsAnError) {
+  replace_in_file(yaml(), "frames: rgb/index.csv", "frames: rgb");
+  expect_clean_failure(run(), "rgb", out_);
+}
+
+TEST_F(Mapper, NanInExtrinsicsIsAnError) {
+  replace_regex_in_file(session_ / "true_calib/extrinsics_rgb.yaml", R"(translation: \[[-0-9.e]+,)",
+                        "translation: [.nan,");
+  expect_clean_failure(run(), "extrinsics_rgb.yaml", out_);
+}
+
+TEST_F(Mapper, HalfSizeThermalFramesAreAnError) {
+  for (const auto& e : fs::directory_iterator(session_ / "thermal")) {
+    if (e.path().extension() != ".png") continue;
+    cv::Mat img = cv::imread(e.path().string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(img.empty()) << e.path();
+    cv::Mat half;
+    cv::resize(img, half, cv::Size(img.cols / 2, img.rows / 2), 0, 0, cv::INTER_NEAREST);
+    ASSERT_TRUE(cv::imwrite(e.path().string(), half));
+  }
+  expect_clean_failure(run(), ".png", out_);
+}
+
+TEST_F(Mapper, EightBitThermalFramesAreAnError) {
+  for (const auto& e : fs::directory_iterator(session_ / "thermal")) {
+    if (e.path().extension() != ".png") continue;
+    cv::Mat img = cv::imread(e.path().string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(img.empty()) << e.path();
+    cv::Mat eight;
+    img.convertTo(eight, CV_8U, 1.0 / 256.0);
+    ASSERT_TRUE(cv::imwrite(e.path().string(), eight));
+  }
+  expect_clean_failure(run(), ".png", out_);
+}
+
+TEST_F(Mapper, AbsurdKelvinPerCountIsAnError) {
+  replace_in_file(yaml(), "kelvin_per_count: 0.04", "kelvin_per_count: 1e300");
+  expect_clean_failure(run(), "kelvin_per_count", out_);
+}
+
+TEST_F(Mapper, NegativeKelvinIsAnError) {
+  replace_in_file(yaml(), "offset_k: 0", "offset_k: -5000");
+  expect_clean_failure(run(), "offset_k", out_);
+}
+
+TEST_F(Mapper, TimeWithTrailingGarbageIsAnError) {
+  replace_in_file(session_ / "rgb/index.csv", "100.002,", "100.002xyz,");
+  expect_clean_failure(run(), "index.csv", out_);
+}
+
+TEST_F(Mapper, HexTimeIsAnError) {
+  replace_in_file(session_ / "rgb/index.csv", "100.002,", "0x64,");
+  expect_clean_failure(run(), "index.csv", out_);
+}
+
+TEST_F(Mapper, MissingFrameIsFoundBeforeTheWork) {
+  fs::remove(session_ / "thermal/00003.png");
+  const auto r = run();
+  expect_clean_failure(r, "00003.png", out_);
+  EXPECT_FALSE(fs::exists(out_ / "map.ply")) << r.output;
+  EXPECT_FALSE(fs::exists(out_ / "trajectory.csv")) << r.output;
+}
+
+// ---------------------------------------------------------------- raw recordings
+
+class TiltLidar : public ::testing::Test {
+ protected:
+  RunResult info(const fs::path& rawlog) {
+    return run_app("rgbdt_tilt_lidar", {"info", rawlog.string()}, rgbdt::test::temp_path("info.log"));
+  }
+};
+
+TEST_F(TiltLidar, RecordClaimingFourGigabytesIsRefused) {
+  const fs::path dir = rgbdt::test::temp_dir("rawlog");
+  const std::string real = slurp(pristine("map") / "lidar.rawlog");
+  ASSERT_GT(real.size(), 64u);
+  // Every 32-bit little-endian word of the first record's first bytes that could be a length
+  // or a count becomes 0xFFFFFFF0, one candidate file each: whichever field the reader trusts,
+  // one of these claims ~4 GB.
+  for (std::size_t at = 0; at + 4 <= 48; at += 4) {
+    std::string bytes = real;
+    bytes.replace(at, 4, u32(0xFFFFFFF0u));
+    const fs::path p = dir / ("claim_" + std::to_string(at) + ".rawlog");
+    write_bytes(p, bytes);
+    const auto r = info(p);
+    SCOPED_TRACE("length word at byte " + std::to_string(at));
+    EXPECT_FALSE(r.timed_out) << r.output;
+    EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << "\n" << r.output;
+  }
+}
+
+TEST_F(TiltLidar, GzipOfGarbageIsNotARawlog) {
+  const fs::path dir = rgbdt::test::temp_dir("gz");
+  const fs::path raw = dir / "garbage.bin";
+  std::mt19937 rng(11);
+  std::string bytes(20000, '\0');
+  for (auto& c : bytes) c = static_cast<char>(rng());
+  write_bytes(raw, bytes);
+  ASSERT_EQ(std::system(("gzip -c " + raw.string() + " > " + (dir / "garbage.rawlog").string()).c_str()), 0);
+  expect_clean_failure(info(dir / "garbage.rawlog"), "garbage.rawlog", dir / "none");
+}
+
+}  // namespace
