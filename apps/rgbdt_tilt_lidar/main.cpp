@@ -6,6 +6,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -186,6 +187,9 @@ int assemble(const AssembleArgs& a) {
   // run that fails leaves no index that lists clouds it did not write.
   core::remove_stale_output(index_path.string());
   core::install_interrupt_handler();
+  // For tests of Ctrl-C: the app sends itself SIGINT after this many clouds.
+  const char* interrupt_env = std::getenv("RGBDT_TEST_INTERRUPT_AFTER_CLOUDS");
+  const long interrupt_after = interrupt_env ? std::strtol(interrupt_env, nullptr, 10) : 0;
   std::vector<core::TimedFile> index;
   std::int64_t skipped = 0;
   const auto r = tilt_lidar::replay_rawlog(
@@ -205,6 +209,8 @@ int assemble(const AssembleArgs& a) {
         index.push_back({t.start_time_s, file.string()});
         std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1, name,
                     t.cloud->size(), t.stats.scans, t.start_time_s, t.end_time_s, t.direction > 0 ? "up" : "down");
+        std::fflush(stdout);
+        if (interrupt_after > 0 && static_cast<long>(index.size()) == interrupt_after) std::raise(SIGINT);
       },
       {}, [] { return core::interrupted(); });
   // Rows name the clouds relative to the index's folder (they all live in it).

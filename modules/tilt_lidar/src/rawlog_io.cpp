@@ -53,6 +53,8 @@ std::string one_line(const std::string& text) {
 mrpt::obs::CObservation2DRangeScan::Ptr to_observation(const Scan& scan, const core::TiltRig& rig,
                                                        const std::string& label,
                                                        const Eigen::Isometry3d* T_lidar_scanner) {
+  // mrpt::Clock turns a non-finite time into an arbitrary tick count: refuse it here.
+  if (!std::isfinite(scan.time_s)) throw std::invalid_argument("tilt_lidar: scan time is not finite");
   auto obs = mrpt::obs::CObservation2DRangeScan::Create();
   obs->sensorLabel = label;
   obs->timestamp = mrpt::Clock::fromDouble(scan.time_s);
@@ -93,6 +95,7 @@ Scan from_observation(const mrpt::obs::CObservation2DRangeScan& obs) {
 
 mrpt::obs::CObservationRawDAQ::Ptr to_observation(const EncoderSample& sample, double count,
                                                   const std::string& label) {
+  if (!std::isfinite(sample.time_s)) throw std::invalid_argument("tilt_lidar: encoder sample time is not finite");
   auto obs = mrpt::obs::CObservationRawDAQ::Create();
   obs->sensorLabel = label;
   obs->timestamp = mrpt::Clock::fromDouble(sample.time_s);
