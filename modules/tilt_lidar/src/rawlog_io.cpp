@@ -402,9 +402,11 @@ bool RawlogReader::fill(std::size_t n) {
     throw core::Error(path_, "record " + std::to_string(records_) + " at byte " + std::to_string(record_offset_) +
                                  " is larger than " + std::to_string(limits_.max_record_bytes) + " bytes");
   }
+  // The buffer grows with the bytes that arrive (at most doubling per read), never with
+  // what a field claims: a forged count costs the bytes the file really holds.
   constexpr std::size_t kChunk = 64 * 1024;
   while (buf_.size() < n && !stream_end_) {
-    const std::size_t want = std::max(kChunk, n - buf_.size());
+    const std::size_t want = std::max(kChunk, buf_.size());
     const std::size_t old = buf_.size();
     buf_.resize(old + want);
     std::size_t got = 0;
