@@ -17,6 +17,7 @@
 #include <mrpt/io/CFileGZOutputStream.h>
 #include <mrpt/io/CMemoryStream.h>
 #include <mrpt/maps/registerAllClasses.h>
+#include <mrpt/obs/CAction.h>
 #include <mrpt/obs/CActionCollection.h>
 #include <mrpt/obs/CSensoryFrame.h>
 #include <mrpt/poses/CPose3D.h>
@@ -214,6 +215,9 @@ class Walker {
 
   std::size_t pos() const { return pos_; }
 
+  /// The class of the record's top-level object as the stream spells it.
+  const std::string& top_class() const { return top_class_; }
+
   // One object with its header; returns its class name (without namespace).
   std::string object() {
     const std::size_t at = pos_;
@@ -239,6 +243,7 @@ class Walker {
                         std::to_string(static_cast<unsigned char>(c)) + " (expected a C++ identifier)"};
       }
     }
+    if (top_class_.empty()) top_class_ = name;
     if (const auto colon = name.rfind(':'); colon != std::string::npos) name = name.substr(colon + 1);
     int version = 0;
     if (old_format) {
@@ -289,6 +294,12 @@ class Walker {
     return n;
   }
   void string(const char* what) { array(1, limits_.max_string_bytes, what); }
+  // MRPT reads a bool as one raw byte: anything but 0 or 1 would be an invalid bool.
+  bool boolean(const char* what) {
+    const auto b = get<std::uint8_t>();
+    if (b > 1) throw WalkError{std::string(what) + " is byte " + std::to_string(b) + " (expected a bool, 0 or 1)"};
+    return b != 0;
+  }
 
   void matrix(std::size_t element_size) {
     const auto rows = get<std::uint32_t>();
@@ -310,7 +321,9 @@ class Walker {
 
   void body(const std::string& name, int version) {
     if (name == "CObservation2DRangeScan" && version <= 7) {
-      skip(4 + 1 + 4);  // aperture, rightToLeft, maxRange
+      skip(4);  // aperture
+      boolean("rightToLeft");
+      skip(4);  // maxRange
       expect_object({"CPose3D"});
       if (version < 6) expect_object({"CMatrix", "CMatrixF", "CMatrixD"});  // covSensorPose
       const auto n = get<std::uint32_t>();
@@ -327,7 +340,7 @@ class Walker {
         string("sensor label");
         skip(8);  // deltaPitch (double)
       }
-      if (version >= 7 && get<std::uint8_t>() != 0) skip(4ull * n);  // intensity
+      if (version >= 7 && boolean("hasIntensity")) skip(4ull * n);  // intensity
     } else if (name == "CObservationRawDAQ" && version == 0) {
       string("sensor label");
       skip(8 + 8);  // timestamp, sample_rate
@@ -337,7 +350,8 @@ class Walker {
       array(4, any, "AIN_32bits");
       array(4, any, "AIN_float");
       array(8, any, "AIN_double");
-      skip(2 + 1);  // AIN_channel_count (uint16), AIN_interleaved
+      skip(2);  // AIN_channel_count (uint16)
+      boolean("AIN_interleaved");
       array(1, any, "AOUT_8bits");
       array(2, any, "AOUT_16bits");
       array(4, any, "AOUT_float");
@@ -372,6 +386,7 @@ class Walker {
   const std::vector<std::uint8_t>& buf_;
   const RawlogLimits& limits_;
   std::size_t pos_ = 0;
+  std::string top_class_;
 };
 
 }  // namespace
@@ -427,12 +442,24 @@ mrpt::serialization::CSerializable::Ptr RawlogReader::read_record() {
   const std::function<bool(std::size_t)> fill = [this](std::size_t n) { return this->fill(n); };
   std::size_t extent = 0;
   bool walked = true;
+  Walker w(fill, buf_, limits_);
   try {
-    Walker w(fill, buf_, limits_);
     w.object();
     extent = w.pos();
   } catch (const UnknownClass&) {
     walked = false;
+    const std::string& w_top = w.top_class();
+    // A rawlog's records are observations, sensory frames, actions or action collections;
+    // any other class is not a rawlog record and is not handed to MRPT.
+    const auto* id = mrpt::rtti::findRegisteredClass(w_top, true);
+    if (!id) throw core::Error(path_, "record holds class " + w_top + ", which is not a registered MRPT class");
+    const bool record_class = id->derivedFrom(CLASS_ID(mrpt::obs::CObservation)) ||
+                              id->derivedFrom(CLASS_ID(mrpt::obs::CAction)) ||
+                              id == CLASS_ID(mrpt::obs::CSensoryFrame) || id == CLASS_ID(mrpt::obs::CActionCollection);
+    if (!record_class) {
+      throw core::Error(path_, "record holds a " + w_top +
+                                   " (expected an observation, sensory frame, action or action collection)");
+    }
   } catch (const WalkError& e) {
     throw core::Error(path_, e.what);
   }

@@ -61,7 +61,8 @@ TEST(FuzzCorpus, RawlogInputsReadWithoutCrashing) {
   EXPECT_EQ(read("valid_sensory_frame"), 2);
   EXPECT_EQ(read("nan_ranges"), 2);
   for (const char* hostile : {"forged_beam_count", "forged_beam_count_gz", "count_beyond_file", "gzip_garbage", "empty",
-                              "frame_huge_count", "daq_huge_vector", "pose_huge_matrix", "label_huge"}) {
+                              "frame_huge_count", "daq_huge_vector", "pose_huge_matrix", "label_huge", "top_level_map",
+                              "scan_bool_16"}) {
     EXPECT_EQ(read(hostile), 0) << hostile;
   }
 }
