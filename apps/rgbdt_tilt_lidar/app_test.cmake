@@ -79,6 +79,14 @@ endif()
 check_index("${WORK}/elsewhere/rel/asm/clouds/index.csv")
 check_index("${WORK}/asm/clouds/index.csv")
 
+# A rerun into the same --out removes the earlier run's clouds instead of mixing them.
+file(WRITE "${WORK}/elsewhere/rel/asm/clouds/000999.pcd" "stale")
+execute_process(COMMAND "${APP}" assemble "${WORK}/s.rawlog" --out rel/asm WORKING_DIRECTORY "${WORK}/elsewhere"
+                RESULT_VARIABLE rerun_rc OUTPUT_QUIET ERROR_QUIET)
+if(NOT rerun_rc EQUAL 0 OR EXISTS "${WORK}/elsewhere/rel/asm/clouds/000999.pcd")
+  message(FATAL_ERROR "a rerun should succeed (${rerun_rc}) and remove the stale 000999.pcd")
+endif()
+
 # Ctrl-C after the second cloud: exit 130, the two complete clouds indexed, no more, and
 # a message that says what is complete.
 execute_process(COMMAND ${CMAKE_COMMAND} -E env RGBDT_TEST_INTERRUPT_AFTER_CLOUDS=2

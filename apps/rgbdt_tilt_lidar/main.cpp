@@ -2,6 +2,7 @@
 // into an MRPT rawlog, assemble a rawlog into one PCD per tilt, or summarise a rawlog.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -186,6 +187,14 @@ int assemble(const AssembleArgs& a) {
   // index.csv is the completion marker: a stale one from an earlier run goes first, so a
   // run that fails leaves no index that lists clouds it did not write.
   core::remove_stale_output(index_path.string());
+  // Clouds of an earlier run (NNNNNN.pcd) would mix with this run's: removed.
+  for (const auto& e : fs::directory_iterator(clouds)) {
+    const std::string n = e.path().filename().string();
+    if (n.size() == 10 && n.compare(6, 4, ".pcd") == 0 &&
+        std::all_of(n.begin(), n.begin() + 6, [](char c) { return c >= '0' && c <= '9'; })) {
+      core::remove_stale_output(e.path().string());
+    }
+  }
   core::install_interrupt_handler();
   // For tests of Ctrl-C: the app sends itself SIGINT after this many clouds.
   const char* interrupt_env = std::getenv("RGBDT_TEST_INTERRUPT_AFTER_CLOUDS");
