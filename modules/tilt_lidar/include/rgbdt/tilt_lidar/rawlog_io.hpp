@@ -110,15 +110,16 @@ struct RawlogLimits {
 /// Reads observations one by one.
 class RawlogReader {
  public:
-  /// Throws rgbdt::core::Error naming the file if it is missing, cannot be opened, or its
-  /// first record is not an MRPT object (not a rawlog, plain or gzip-compressed).
+  /// Throws rgbdt::core::Error naming the file if it is missing or cannot be opened.
   explicit RawlogReader(const std::string& path, const RawlogLimits& limits = {});
   ~RawlogReader();
   RawlogReader(const RawlogReader&) = delete;
   RawlogReader& operator=(const RawlogReader&) = delete;
 
   /// The next observation, or nullptr at the end of the file or at the first unreadable
-  /// record (then error() says which byte and why, and truncated() is true).
+  /// record (then error() says which byte and why, and truncated() is true). Throws
+  /// rgbdt::core::Error naming the file if the very first record is unreadable: the file
+  /// is not a rawlog (plain or gzip-compressed), e.g. gzip of other data.
   mrpt::obs::CObservation::Ptr next();
   /// The top-level record the last observation came from (0-based) and its byte offset in
   /// the decompressed stream, for messages that name a record.
