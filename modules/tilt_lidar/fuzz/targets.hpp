@@ -100,6 +100,7 @@ inline int rawlog_input(const std::uint8_t* data, std::size_t size) {
     replay_rawlog(path, assembler, [](TiltCloud&&) {}, StreamLabels{});
   } catch (const core::Error&) {
   }
+  std::remove(path.c_str());
   return observations;
 }
 
