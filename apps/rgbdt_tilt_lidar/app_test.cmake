@@ -1,5 +1,6 @@
 # End-to-end check of the app as a user runs it (ctest -P script):
-#   record 3 s from the emulated rig -> info -> assemble (rig found beside the rawlog)
+#   record 3 s from the emulated rig -> info -> assemble (rig found beside the rawlog),
+#   relative --out from another directory, Ctrl-C, gzip garbage, both rig file names
 # Expects: about 40 scans/s and 200 encoder samples/s in the rawlog, no loss reported, and at
 # least 3 whole tilts written (a 3 s sweep at the default 1 Hz tilt rate holds 4-6 reversals).
 # Run as: cmake -DAPP=<rgbdt_tilt_lidar> -DWORK=<dir> -DRIG_INI=<rig.ini> -P app_test.cmake
@@ -49,10 +50,79 @@ if(n_pcd LESS 3 OR NOT n_index GREATER n_pcd)  # index.csv has a header line
   message(FATAL_ERROR "expected >= 3 tilt clouds with an index, got ${n_pcd} PCDs, ${n_index} index lines:\n${asm_out}")
 endif()
 
+# Index rows resolve against the index's folder, also with a relative --out given from
+# another working directory (readers resolve rows against the folder of index.csv).
+function(check_index index)
+  get_filename_component(dir "${index}" DIRECTORY)
+  file(STRINGS "${index}" rows)
+  list(LENGTH rows n)
+  if(n LESS 2)
+    message(FATAL_ERROR "${index} lists no clouds")
+  endif()
+  list(REMOVE_AT rows 0)
+  foreach(row IN LISTS rows)
+    string(REGEX REPLACE "^[^,]*," "" f "${row}")
+    if(NOT IS_ABSOLUTE "${f}")
+      set(f "${dir}/${f}")
+    endif()
+    if(NOT EXISTS "${f}")
+      message(FATAL_ERROR "${index}: row '${row}' names ${f}, which does not exist")
+    endif()
+  endforeach()
+endfunction()
+file(MAKE_DIRECTORY "${WORK}/elsewhere")
+execute_process(COMMAND "${APP}" assemble "${WORK}/s.rawlog" --out rel/asm WORKING_DIRECTORY "${WORK}/elsewhere"
+                RESULT_VARIABLE rel_rc OUTPUT_VARIABLE rel_out ERROR_VARIABLE rel_err)
+if(NOT rel_rc EQUAL 0)
+  message(FATAL_ERROR "assemble --out rel/asm failed (${rel_rc}):\n${rel_out}\n${rel_err}")
+endif()
+check_index("${WORK}/elsewhere/rel/asm/clouds/index.csv")
+check_index("${WORK}/asm/clouds/index.csv")
+
+# A rerun into the same --out removes the earlier run's clouds instead of mixing them.
+file(WRITE "${WORK}/elsewhere/rel/asm/clouds/000999.pcd" "stale")
+execute_process(COMMAND "${APP}" assemble "${WORK}/s.rawlog" --out rel/asm WORKING_DIRECTORY "${WORK}/elsewhere"
+                RESULT_VARIABLE rerun_rc OUTPUT_QUIET ERROR_QUIET)
+if(NOT rerun_rc EQUAL 0 OR EXISTS "${WORK}/elsewhere/rel/asm/clouds/000999.pcd")
+  message(FATAL_ERROR "a rerun should succeed (${rerun_rc}) and remove the stale 000999.pcd")
+endif()
+
+# Ctrl-C after the second cloud: exit 130, the two complete clouds indexed, no more, and
+# a message that says what is complete.
+execute_process(COMMAND ${CMAKE_COMMAND} -E env RGBDT_TEST_INTERRUPT_AFTER_CLOUDS=2
+                        "${APP}" assemble "${WORK}/s.rawlog" --out "${WORK}/asm_int"
+                RESULT_VARIABLE int_rc OUTPUT_VARIABLE int_out ERROR_VARIABLE int_err)
+file(GLOB int_pcds "${WORK}/asm_int/clouds/*.pcd")
+list(LENGTH int_pcds n_int)
+if(NOT int_rc EQUAL 130 OR NOT n_int EQUAL 2 OR NOT int_err MATCHES "interrupted: 2 complete tilt clouds")
+  message(FATAL_ERROR "interrupted assemble: expected exit 130 and 2 clouds, got ${int_rc}, ${n_int}:\n${int_out}\n${int_err}")
+endif()
+file(STRINGS "${WORK}/asm_int/clouds/index.csv" int_rows)
+list(LENGTH int_rows n_int_rows)
+if(NOT n_int_rows EQUAL 3)
+  message(FATAL_ERROR "interrupted assemble: index.csv should list the 2 complete clouds:\n${int_rows}")
+endif()
+check_index("${WORK}/asm_int/clouds/index.csv")
+
+# A gzip file of garbage is not a rawlog: an error naming the file, not 0 observations.
+string(RANDOM LENGTH 4000 garbage)
+file(WRITE "${WORK}/garbage.txt" "${garbage}")
+execute_process(COMMAND gzip -c "${WORK}/garbage.txt" OUTPUT_FILE "${WORK}/garbage.rawlog")
+run_step(garbage "${APP}" info "${WORK}/garbage.rawlog")
+if(garbage_rc EQUAL 0 OR NOT garbage_rc LESS 128 OR NOT garbage_err MATCHES "garbage\\.rawlog.*not an MRPT rawlog")
+  message(FATAL_ERROR "info on gzip garbage should fail naming the file (${garbage_rc}):\n${garbage_out}\n${garbage_err}")
+endif()
+
 # Without the rig file the message names the file it looked for.
 file(RENAME "${WORK}/s.tilt_rig.yaml" "${WORK}/moved.yaml")
 run_step(norig "${APP}" assemble "${WORK}/s.rawlog" --out "${WORK}/asm2")
 if(norig_rc EQUAL 0 OR NOT norig_err MATCHES "s\\.tilt_rig\\.yaml")
   message(FATAL_ERROR "assemble without a rig should fail naming s.tilt_rig.yaml (${norig_rc}):\n${norig_err}")
+endif()
+# The rig as `rgbdt_sim mapping` names it (tilt_rig.yaml beside the rawlog) is found and named.
+file(RENAME "${WORK}/moved.yaml" "${WORK}/tilt_rig.yaml")
+run_step(simrig "${APP}" assemble "${WORK}/s.rawlog" --out "${WORK}/asm3")
+if(NOT simrig_rc EQUAL 0 OR NOT simrig_out MATCHES "rig: [^\n]*/tilt_rig\\.yaml")
+  message(FATAL_ERROR "assemble should use tilt_rig.yaml beside the rawlog (${simrig_rc}):\n${simrig_out}\n${simrig_err}")
 endif()
 message(STATUS "rgbdt_tilt_lidar: ${scans} scans, ${encoder} encoder samples, ${n_pcd} tilts")

@@ -2,13 +2,16 @@
 // into an MRPT rawlog, assemble a rawlog into one PCD per tilt, or summarise a rawlog.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <sstream>
 #include <thread>
 
 #include <mrpt/config/CConfigFile.h>
@@ -17,7 +20,9 @@
 
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/log.hpp"
+#include "rgbdt/core/output.hpp"
 #include "rgbdt/core/tilt_rig.hpp"
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/tilt_lidar/assembler.hpp"
@@ -149,55 +154,107 @@ struct AssembleArgs {
   bool keep_partial = false;
 };
 
-int assemble(const AssembleArgs& a) {
-  // `record` writes <out>.tilt_rig.yaml beside the rawlog; use it unless told otherwise.
-  std::string rig_path = a.rig;
-  if (rig_path.empty()) {
-    rig_path = fs::path(a.rawlog).replace_extension(".tilt_rig.yaml").string();
-    if (!fs::exists(rig_path)) {
-      std::fprintf(stderr,
-                   "assemble: no --rig given and %s (written by `record` beside the rawlog) does "
-                   "not exist; pass --rig tilt_rig.yaml\n",
-                   rig_path.c_str());
-      return 1;
-    }
-    std::printf("rig: %s\n", rig_path.c_str());
+// The rig file of a rawlog: --rig if given, else `<stem>.tilt_rig.yaml` (what `record`
+// writes), else `tilt_rig.yaml` (what `rgbdt_sim mapping` writes) beside the rawlog.
+std::string find_rig(const AssembleArgs& a) {
+  if (!a.rig.empty()) {
+    std::printf("rig: %s (--rig)\n", a.rig.c_str());
+    return a.rig;
   }
+  const fs::path rawlog(a.rawlog);
+  const fs::path stem_rig = fs::path(rawlog).replace_extension(".tilt_rig.yaml");
+  const fs::path dir_rig = rawlog.parent_path() / "tilt_rig.yaml";
+  for (const auto& [p, why] : {std::pair{stem_rig, "beside the rawlog, named after it"},
+                               std::pair{dir_rig, "beside the rawlog"}}) {
+    if (fs::is_regular_file(p)) {
+      std::printf("rig: %s (%s)\n", p.c_str(), why);
+      return p.string();
+    }
+  }
+  throw core::Error(a.rawlog, "no --rig given and neither " + stem_rig.string() + " (written by `record`) nor " +
+                                  dir_rig.string() + " (written by `rgbdt_sim mapping`) exists; pass --rig FILE");
+}
+
+int assemble(const AssembleArgs& a) {
+  const std::string rig_path = find_rig(a);
   const core::TiltRig rig = core::read_tilt_rig(rig_path);
   tilt_lidar::Assembler assembler(rig, a.options);
-  const fs::path clouds = fs::path(a.out) / "clouds";
+  // Absolute paths: index rows are written relative to the index's own folder, whatever
+  // the working directory.
+  const fs::path clouds = fs::absolute(fs::path(a.out) / "clouds");
+  const fs::path index_path = clouds / "index.csv";
   fs::create_directories(clouds);
+  // index.csv is the completion marker: a stale one from an earlier run goes first, so a
+  // run that fails leaves no index that lists clouds it did not write.
+  core::remove_stale_output(index_path.string());
+  // Clouds of an earlier run (NNNNNN.pcd) would mix with this run's: removed.
+  for (const auto& e : fs::directory_iterator(clouds)) {
+    const std::string n = e.path().filename().string();
+    if (n.size() == 10 && n.compare(6, 4, ".pcd") == 0 &&
+        std::all_of(n.begin(), n.begin() + 6, [](char c) { return c >= '0' && c <= '9'; })) {
+      core::remove_stale_output(e.path().string());
+    }
+  }
+  core::install_interrupt_handler();
+  // For tests of Ctrl-C: the app sends itself SIGINT after this many clouds.
+  const char* interrupt_env = std::getenv("RGBDT_TEST_INTERRUPT_AFTER_CLOUDS");
+  const long interrupt_after = interrupt_env ? std::strtol(interrupt_env, nullptr, 10) : 0;
   std::vector<core::TimedFile> index;
   std::int64_t skipped = 0;
-  const auto r = tilt_lidar::replay_rawlog(a.rawlog, assembler, [&](tilt_lidar::TiltCloud&& t) {
-    if (t.partial && !a.keep_partial) {
-      ++skipped;
-      return;
-    }
-    char name[32];
-    std::snprintf(name, sizeof name, "%06zu.pcd", index.size());
-    const fs::path file = clouds / name;
-    cloud::save_pcd(file.string(), *t.cloud);
-    index.push_back({t.start_time_s, file.string()});
-    std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1, name, t.cloud->size(),
-                t.stats.scans, t.start_time_s, t.end_time_s, t.direction > 0 ? "up" : "down");
-  });
-  core::write_time_index((clouds / "index.csv").string(), index);
+  const auto r = tilt_lidar::replay_rawlog(
+      a.rawlog, assembler,
+      [&](tilt_lidar::TiltCloud&& t) {
+        if (core::interrupted()) return;  // stop after the cloud being written
+        if (t.partial && !a.keep_partial) {
+          ++skipped;
+          return;
+        }
+        char name[32];
+        std::snprintf(name, sizeof name, "%06zu.pcd", index.size());
+        const fs::path file = clouds / name;
+        core::TempOutput out(file.string());
+        cloud::save_pcd(out.temp_path(), *t.cloud);
+        out.commit();
+        index.push_back({t.start_time_s, file.string()});
+        std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1, name,
+                    t.cloud->size(), t.stats.scans, t.start_time_s, t.end_time_s, t.direction > 0 ? "up" : "down");
+        std::fflush(stdout);
+        if (interrupt_after > 0 && static_cast<long>(index.size()) == interrupt_after) std::raise(SIGINT);
+      },
+      {}, [] { return core::interrupted(); });
+  // Rows name the clouds relative to the index's folder (they all live in it).
+  std::ostringstream csv;
+  csv << "time_s,file\n" << std::setprecision(15);
+  for (const auto& e : index) csv << e.time_s << ',' << fs::path(e.file).filename().string() << '\n';
+  core::write_file_atomic(index_path.string(), csv.str());
   const auto& s = assembler.stats();
   std::printf("%lld scans, %lld encoder samples -> %zu tilts in %s (%lld partial skipped)\n"
-              "points %lld, invalid %lld, dropped in encoder gaps %lld, without encoder %lld, "
-              "duplicates %lld/%lld, late %lld/%lld\n",
+              "points %lld, invalid %lld (%lld NaN/negative ranges refused), dropped in encoder gaps %lld, "
+              "without encoder %lld, duplicates %lld/%lld, late %lld/%lld\n",
               static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples), index.size(),
-              (clouds / "index.csv").c_str(), static_cast<long long>(skipped), static_cast<long long>(s.points),
-              static_cast<long long>(s.invalid), static_cast<long long>(s.dropped_gap),
-              static_cast<long long>(s.dropped_no_encoder), static_cast<long long>(s.scans_duplicate),
-              static_cast<long long>(s.encoder_duplicate), static_cast<long long>(s.scans_late),
-              static_cast<long long>(s.encoder_late));
+              index_path.c_str(), static_cast<long long>(skipped), static_cast<long long>(s.points),
+              static_cast<long long>(s.invalid), static_cast<long long>(r.beams_refused),
+              static_cast<long long>(s.dropped_gap), static_cast<long long>(s.dropped_no_encoder),
+              static_cast<long long>(s.scans_duplicate), static_cast<long long>(s.encoder_duplicate),
+              static_cast<long long>(s.scans_late), static_cast<long long>(s.encoder_late));
+  if (r.interrupted) {
+    std::fprintf(stderr,
+                 "interrupted: %zu complete tilt clouds are written and listed in %s; the rest of %s was "
+                 "not assembled\n",
+                 index.size(), index_path.c_str(), a.rawlog.c_str());
+    return 130;
+  }
   if (r.truncated) {
-    std::fprintf(stderr, "error: %s\n(the tilts before the damaged record were written)\n", r.error.c_str());
+    std::fprintf(stderr, "error: %s\n(the %zu tilts before the damaged record were written and indexed in %s)\n",
+                 r.error.c_str(), index.size(), index_path.c_str());
     return 2;
   }
-  return index.empty() ? 1 : 0;
+  if (index.empty()) {
+    std::fprintf(stderr, "error: %s: no complete tilt could be assembled (%lld scans, %lld encoder samples)\n",
+                 a.rawlog.c_str(), static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples));
+    return 1;
+  }
+  return 0;
 }
 
 int info(const std::string& rawlog) {
@@ -245,8 +302,8 @@ int main(int argc, char** argv) {
   auto* asmb = app.add_subcommand("assemble", "assemble a raw rawlog into one PCD per tilt");
   asmb->add_option("rawlog", aa.rawlog, "input rawlog")->required()->check(CLI::ExistingFile);
   asmb->add_option("--rig", aa.rig,
-                   "tilt_rig.yaml (frames, beam timing, encoder); default: the "
-                   "<rawlog>.tilt_rig.yaml that `record` wrote beside the rawlog")
+                   "tilt_rig.yaml (frames, beam timing, encoder); default: <rawlog stem>.tilt_rig.yaml "
+                   "(written by `record`), else tilt_rig.yaml (written by `rgbdt_sim mapping`) beside the rawlog")
       ->check(CLI::ExistingFile);
   asmb->add_option("--out", aa.out, "output folder (clouds/NNNNNN.pcd, clouds/index.csv)")->required();
   asmb->add_option("--max-gap", aa.options.max_encoder_gap_s, "longest encoder gap to interpolate across [s]")->capture_default_str();

@@ -4,10 +4,16 @@
 // aborts only if an invariant breaks.
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
+#include <string>
 #include <string_view>
 
+#include <unistd.h>
+
+#include "rgbdt/core/error.hpp"
 #include "rgbdt/tilt_lidar/dynamixel.hpp"
+#include "rgbdt/tilt_lidar/rawlog_io.hpp"
 #include "rgbdt/tilt_lidar/scip.hpp"
 
 namespace rgbdt::tilt_lidar::fuzz {
@@ -54,6 +60,48 @@ inline int dynamixel_input(const std::uint8_t* data, std::size_t size) {
     }
   }
   return accepted;
+}
+
+// Arbitrary bytes as a rawlog file (plain or gzip): read every observation, convert the
+// scans and encoder samples, and replay them into an assembler. Unreadable input must end
+// in rgbdt::core::Error or a reported truncation; any other exception, a crash or an
+// allocation beyond the input's size is a bug. Returns the observations read.
+inline int rawlog_input(const std::uint8_t* data, std::size_t size) {
+  static const std::string path = "/tmp/rgbdt_rawlog_fuzz_" + std::to_string(::getpid()) + ".rawlog";
+  {
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (!f) std::abort();
+    if (size && std::fwrite(data, 1, size, f) != size) std::abort();
+    std::fclose(f);
+  }
+  int observations = 0;
+  try {
+    RawlogReader reader(path);
+    while (auto obs = reader.next()) {
+      ++observations;
+      if (const auto* scan = dynamic_cast<const mrpt::obs::CObservation2DRangeScan*>(obs.get())) {
+        const Scan sc = from_observation(*scan);
+        if (sc.ranges_m.size() != scan->getScanSize() || sc.valid.size() != sc.ranges_m.size()) std::abort();
+        for (std::size_t i = 0; i < sc.ranges_m.size(); ++i)
+          if (sc.valid[i] && !(sc.ranges_m[i] >= 0.0f)) std::abort();  // NaN/negative must be invalid
+      } else if (const auto* daq = dynamic_cast<const mrpt::obs::CObservationRawDAQ*>(obs.get())) {
+        try {
+          from_observation(*daq, core::TiltRig{}.motor);
+        } catch (const core::Error&) {
+        }
+      }
+    }
+    if (reader.truncated() && reader.error().find(path) == std::string::npos) std::abort();
+  } catch (const core::Error& e) {
+    if (std::string(e.what()).find(path) == std::string::npos) std::abort();  // must name the file
+  }
+  try {
+    Assembler assembler(core::TiltRig{});
+    replay_rawlog(path, assembler, [](TiltCloud&&) {}, StreamLabels{});
+  } catch (const core::Error&) {
+  }
+  std::remove(path.c_str());
+  return observations;
 }
 
 }  // namespace rgbdt::tilt_lidar::fuzz

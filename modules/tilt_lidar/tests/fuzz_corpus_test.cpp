@@ -45,5 +45,27 @@ TEST(FuzzCorpus, DynamixelInputsParseWithoutCrashing) {
   EXPECT_EQ(fuzz::dynamixel_input(stuffed.data(), stuffed.size()), 1);
 }
 
+// Rawlogs (seeds from fuzz/make_rawlog_seeds.py plus the fuzzer's finds): the valid ones
+// read whole, the hostile ones (forged counts, gzip garbage, empty) read nothing and end
+// in an error, never in a crash or a huge allocation.
+TEST(FuzzCorpus, RawlogInputsReadWithoutCrashing) {
+  const auto files = corpus("rawlog");
+  ASSERT_GE(files.size(), 10u) << "corpus missing under modules/tilt_lidar/fuzz/corpus/rawlog";
+  for (const auto& [name, bytes] : files) fuzz::rawlog_input(bytes.data(), bytes.size());
+  auto read = [&](const std::string& name) {
+    const auto& b = files.at(name);
+    return fuzz::rawlog_input(b.data(), b.size());
+  };
+  EXPECT_EQ(read("valid_scans_encoder"), 4);
+  EXPECT_EQ(read("valid_scans_encoder_gz"), 4);
+  EXPECT_EQ(read("valid_sensory_frame"), 2);
+  EXPECT_EQ(read("nan_ranges"), 2);
+  for (const char* hostile : {"forged_beam_count", "forged_beam_count_gz", "count_beyond_file", "gzip_garbage", "empty",
+                              "frame_huge_count", "daq_huge_vector", "pose_huge_matrix", "label_huge", "top_level_map",
+                              "scan_bool_16"}) {
+    EXPECT_EQ(read(hostile), 0) << hostile;
+  }
+}
+
 }  // namespace
 }  // namespace rgbdt::tilt_lidar

@@ -2,11 +2,23 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <iterator>
+#include <limits>
+#include <random>
 
 #include <mrpt/core/Clock.h>
+#include <mrpt/io/CFileGZOutputStream.h>
 
 #include "rgbdt/core/error.hpp"
 #include "stream_fixture.hpp"
@@ -28,6 +40,84 @@ void write_stream(RawlogWriter& w, const test::Stream& s, double scan_len) {
     w.write(scan);
   }
   for (; e < s.encoder.size(); ++e) w.write(s.encoder[e], s.counts[e]);
+}
+
+std::vector<char> read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+void write_bytes(const std::string& path, const std::vector<char>& bytes, bool gzip) {
+  if (gzip) {
+    mrpt::io::CFileGZOutputStream out(path);
+    out.Write(bytes.data(), bytes.size());
+  } else {
+    std::ofstream(path, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+}
+
+// A rawlog of a short stream with the beam count of its first scan record replaced by
+// `count` (the field MRPT reads before resizing the scan).
+std::string forged_beam_count(const fs::path& dir, std::uint32_t count, bool gzip) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 0.3);
+  const std::string plain = (dir / "plain.rawlog").string();
+  {
+    RawlogWriter w(plain, rig);
+    write_stream(w, s, rig.scanner.scan_period_s);
+  }
+  std::vector<char> bytes = read_bytes(plain);
+  // The count follows the scanner pose object's end flag 0x88.
+  const std::uint32_t beams = static_cast<std::uint32_t>(rig.scanner.beams);
+  char pattern[5] = {static_cast<char>(0x88)};
+  std::memcpy(pattern + 1, &beams, 4);
+  const auto it = std::search(bytes.begin(), bytes.end(), pattern, pattern + 5);
+  EXPECT_NE(it, bytes.end());
+  std::memcpy(&*(it + 1), &count, 4);
+  const std::string path = (dir / (gzip ? "forged.rawlog.gz" : "forged.rawlog")).string();
+  write_bytes(path, bytes, gzip);
+  return path;
+}
+
+struct ChildResult {
+  bool exited = false;
+  int code = -1, signal = 0;
+  std::string message;
+};
+
+// Runs `body` in a child under a 1 GB address-space limit; the child writes the message it
+// got to a pipe and exits with the code `body` returns (or 3 on an exception).
+ChildResult run_bounded(const std::function<int(std::string&)>& body) {
+  int fds[2];
+  EXPECT_EQ(pipe(fds), 0);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    close(fds[0]);
+    const rlimit lim{1ull << 30, 1ull << 30};
+    setrlimit(RLIMIT_AS, &lim);
+    std::string msg;
+    int code = 0;
+    try {
+      code = body(msg);
+    } catch (const std::exception& e) {
+      msg = e.what();
+      code = 3;
+    }
+    (void)!write(fds[1], msg.data(), msg.size());
+    _exit(code);
+  }
+  close(fds[1]);
+  ChildResult r;
+  char buf[4096];
+  ssize_t n;
+  while ((n = read(fds[0], buf, sizeof buf)) > 0) r.message.append(buf, static_cast<std::size_t>(n));
+  close(fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  r.exited = WIFEXITED(status);
+  if (r.exited) r.code = WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) r.signal = WTERMSIG(status);
+  return r;
 }
 
 std::vector<TiltCloud> replay(const std::string& path, const core::TiltRig& rig, ReplayResult* result = nullptr) {
@@ -202,6 +292,162 @@ TEST(RawlogIo, ReadsRealMrptRawlogs) {
     EXPECT_LT(sc.ranges_m[i], scan->maxRange + 1e-3f);
   }
   EXPECT_GT(valid, 50);
+}
+
+// A scan record claiming ~4 G beams: reading stops at that record with a message naming
+// the file and the count, in bounded memory (1 GB address space), plain and gzip.
+TEST(RawlogIo, ForgedBeamCountIsRefusedInBoundedMemory) {
+  const fs::path dir = test::temp_dir("rawlog");
+  for (const bool gzip : {false, true}) {
+    const std::string path = forged_beam_count(dir, 0xFFFFFFF0u, gzip);
+    const ChildResult r = run_bounded([&](std::string& msg) {
+      const RawlogSummary s = summarize_rawlog(path);
+      msg = s.error;
+      return s.truncated ? 2 : 0;
+    });
+    ASSERT_TRUE(r.exited) << "reader died of signal " << r.signal << " on " << path;
+    EXPECT_EQ(r.code, 2) << r.message;
+    EXPECT_NE(r.message.find(path), std::string::npos) << r.message;
+    EXPECT_NE(r.message.find("4294967280 beams"), std::string::npos) << r.message;
+
+    const ChildResult rr = run_bounded([&](std::string& msg) {
+      Assembler a(test::test_rig());
+      const ReplayResult res = replay_rawlog(path, a, [](TiltCloud&&) {});
+      msg = res.error;
+      return res.truncated ? 2 : 0;
+    });
+    ASSERT_TRUE(rr.exited) << "replay died of signal " << rr.signal << " on " << path;
+    EXPECT_EQ(rr.code, 2) << rr.message;
+  }
+}
+
+// A count within the beam limit but beyond the bytes left in the file is refused before
+// anything is allocated for it: the record ends early, reported as such.
+TEST(RawlogIo, CountLargerThanTheFileIsRefused) {
+  const fs::path dir = test::temp_dir("rawlog");
+  const std::uint32_t count = 19999;
+  const std::string path = forged_beam_count(dir, count, false);
+  // Cut the file 2000 bytes after the count: far fewer than 19999 beams' worth.
+  const std::vector<char> bytes = read_bytes(path);
+  char pattern[5] = {static_cast<char>(0x88)};
+  std::memcpy(pattern + 1, &count, 4);
+  const auto at = std::search(bytes.begin(), bytes.end(), pattern, pattern + 5) - bytes.begin();
+  ASSERT_LT(at + 2005, static_cast<std::ptrdiff_t>(bytes.size()));
+  fs::resize_file(path, static_cast<std::uintmax_t>(at + 2005));
+  RawlogReader reader(path);
+  while (reader.next()) {
+  }
+  EXPECT_TRUE(reader.truncated());
+  EXPECT_NE(reader.error().find("bytes early"), std::string::npos) << reader.error();
+}
+
+TEST(RawlogIo, GzipOfGarbageAndEmptyFilesAreNotRawlogs) {
+  const fs::path dir = test::temp_dir("rawlog");
+  std::mt19937 rng(7);
+  std::vector<char> garbage(20000);
+  for (auto& c : garbage) c = static_cast<char>(rng());
+  const std::string gz = (dir / "garbage.rawlog").string();
+  write_bytes(gz, garbage, true);
+  const std::string empty = (dir / "empty.rawlog").string();
+  write_bytes(empty, {}, false);
+  for (const auto& path : {gz, empty}) {
+    try {
+      summarize_rawlog(path);
+      FAIL() << path << " read as a rawlog";
+    } catch (const core::Error& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(path), std::string::npos) << what;
+      EXPECT_TRUE(what.find("not an MRPT rawlog") != std::string::npos ||
+                  what.find("holds no observations") != std::string::npos)
+          << what;
+    }
+    Assembler a(test::test_rig());
+    EXPECT_THROW(replay_rawlog(path, a, [](TiltCloud&&) {}), core::Error) << path;
+  }
+}
+
+TEST(RawlogIo, NonFiniteAndNegativeRangesAreNotValidBeams) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 0.1);
+  auto obs = to_observation(s.scans[0], rig, "HOKUYO");
+  const float bad[] = {std::nanf(""), -1.0f, std::numeric_limits<float>::infinity()};
+  for (std::size_t i = 0; i < 3; ++i) {
+    obs->setScanRange(i, bad[i]);
+    obs->setScanRangeValidity(i, true);
+  }
+  const Scan sc = from_observation(*obs);
+  for (std::size_t k = 0; k < sc.ranges_m.size(); ++k) {
+    const std::size_t i = k;  // rightToLeft: beam order unchanged
+    if (i < 3) {
+      EXPECT_EQ(sc.valid[k], 0) << "beam " << i << " range " << bad[i];
+      EXPECT_TRUE(std::isfinite(sc.ranges_m[k]));
+    }
+  }
+}
+
+TEST(RawlogIo, EncoderTimeGoingBackOrNotFiniteStopsReplayNamingTheRecord) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 1.0);
+  const fs::path dir = test::temp_dir("rawlog");
+  // A sample stamped before the previous one, then one whose angle is NaN.
+  for (const bool nan_angle : {false, true}) {
+    const std::string path = (dir / "back.rawlog").string();
+    const std::size_t half = s.encoder.size() / 2;
+    {
+      RawlogWriter w(path, rig);
+      for (std::size_t e = 0; e < half; ++e) w.write(s.encoder[e], s.counts[e]);
+      if (nan_angle) {
+        auto daq = to_observation(s.encoder[half], s.counts[half], "TILT_ENCODER");
+        daq->CNTRIN_double.clear();
+        daq->AIN_double = {std::nan("")};
+        w.write(*daq);
+      } else {
+        EncoderSample back = s.encoder[half];
+        back.time_s = s.encoder[half / 2].time_s;
+        w.write(back, s.counts[half]);
+      }
+      for (std::size_t e = half + 1; e < s.encoder.size(); ++e) w.write(s.encoder[e], s.counts[e]);
+    }
+    ReplayResult r;
+    replay(path, rig, &r);
+    EXPECT_TRUE(r.truncated) << "nan angle " << nan_angle;
+    EXPECT_NE(r.error.find(path), std::string::npos) << r.error;
+    EXPECT_NE(r.error.find("record " + std::to_string(half) + " "), std::string::npos) << r.error;
+    EXPECT_NE(r.error.find(nan_angle ? "expected finite" : "expected non-decreasing"), std::string::npos) << r.error;
+    EXPECT_EQ(r.encoder_samples, static_cast<std::int64_t>(half)) << r.error;
+  }
+}
+
+TEST(RawlogIo, WriterRefusesNonFiniteTimes) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 0.1);
+  const fs::path dir = test::temp_dir("rawlog");
+  RawlogWriter w((dir / "w.rawlog").string(), rig);
+  EncoderSample e = s.encoder[0];
+  e.time_s = std::nan("");
+  EXPECT_THROW(w.write(e, s.counts[0]), std::invalid_argument);
+  Scan sc = s.scans[0];
+  sc.time_s = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(w.write(sc), std::invalid_argument);
+  EXPECT_EQ(w.records(), 0);
+}
+
+TEST(RawlogIo, StopEndsReplayWithoutTheUnfinishedTilt) {
+  const auto rig = test::test_rig();
+  const auto s = test::make_stream(rig, test::MotionProfile{}, 2.0);
+  const fs::path dir = test::temp_dir("rawlog");
+  const std::string path = (dir / "session.rawlog").string();
+  {
+    RawlogWriter w(path, rig);
+    write_stream(w, s, rig.scanner.scan_period_s);
+  }
+  Assembler a(rig);
+  int tilts = 0;
+  const ReplayResult r = replay_rawlog(path, a, [&](TiltCloud&&) { ++tilts; }, {}, [&] { return tilts >= 1; });
+  EXPECT_TRUE(r.interrupted);
+  EXPECT_FALSE(r.truncated);
+  EXPECT_EQ(tilts, 1);
+  EXPECT_LT(r.scans, static_cast<std::int64_t>(s.scans.size()));
 }
 
 }  // namespace
