@@ -196,10 +196,9 @@ std::size_t skip_ascii_lines(const std::string& bytes, std::size_t pos, std::uin
   for (std::uint64_t k = 0; k < lines && pos < bytes.size();) {
     std::size_t eol = bytes.find('\n', pos);
     if (eol == std::string::npos) eol = bytes.size();
-    if (!split(std::string_view(bytes.data() + pos, eol - pos)).empty() &&
-        std::string_view(bytes.data() + pos, eol - pos) != "\r") {
-      ++k;
-    }
+    std::string_view line(bytes.data() + pos, eol - pos);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (!split(line).empty()) ++k;
     pos = eol + 1;
   }
   return std::min(pos, bytes.size());

@@ -48,6 +48,14 @@ const RawField* find_field(const RawCloud& raw, std::initializer_list<const char
   return nullptr;
 }
 
+// double -> float without undefined behaviour: beyond float's range gives +-inf (which the
+// value checks then refuse), NaN stays NaN.
+float to_float(double v) {
+  if (v > std::numeric_limits<float>::max()) return std::numeric_limits<float>::infinity();
+  if (v < -std::numeric_limits<float>::max()) return -std::numeric_limits<float>::infinity();
+  return static_cast<float>(v);
+}
+
 template <typename T>
 void store(double v, std::uint8_t* out) {
   const T t = static_cast<T>(v);
@@ -148,7 +156,8 @@ bool parse_ascii_value(std::string_view token, Kind kind, std::size_t size, std:
   if (kind == Kind::kFloat) {
     if (!parse_float_token(token, &v)) return false;
     if (size == 4) {
-      store<float>(v, out);  // beyond float range becomes inf, which the checks catch
+      const float f = to_float(v);  // beyond float range becomes inf, which the checks catch
+      std::memcpy(out, &f, 4);
     } else {
       store<double>(v, out);
     }
@@ -234,18 +243,16 @@ LoadedCloud to_loaded_cloud(const RawCloud& raw, const std::string& path, const 
     // A missing return (NaN in organised clouds) is dropped, not an error.
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;
     PointXYZIRT p;
-    p.x = static_cast<float>(x);
-    p.y = static_cast<float>(y);
-    p.z = static_cast<float>(z);
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-      fail(i, *fx, x, "coordinates within float range");
-    }
+    p.x = to_float(x);
+    p.y = to_float(y);
+    p.z = to_float(z);
+    if (!std::isfinite(p.x)) fail(i, *fx, x, "a coordinate within float range");
+    if (!std::isfinite(p.y)) fail(i, *fy, y, "a coordinate within float range");
+    if (!std::isfinite(p.z)) fail(i, *fz, z, "a coordinate within float range");
     if (fi) {
       const double v = at(i, *fi);
-      if (!std::isfinite(v) || !std::isfinite(static_cast<float>(v))) {
-        fail(i, *fi, v, "a finite intensity");
-      }
-      p.intensity = static_cast<float>(v);
+      p.intensity = to_float(v);
+      if (!std::isfinite(p.intensity)) fail(i, *fi, v, "a finite intensity");
     }
     if (fr) {
       const double v = at(i, *fr);
@@ -264,7 +271,7 @@ LoadedCloud to_loaded_cloud(const RawCloud& raw, const std::string& path, const 
                  (absolute_time ? " (value shown relative to the earliest, " + show(t0) + " s)"
                                 : ""));
       }
-      p.t = static_cast<float>(rel);
+      p.t = to_float(rel);
     }
     out.cloud->push_back(p);
   }

@@ -287,6 +287,12 @@ TEST(PcdIoHostile, TimeNotFiniteOrFarOffIsRefusedNamingPointAndValue) {
   EXPECT_EQ(load_in_child(path, "9000"), kRefusedWithPath);
 }
 
+TEST(PcdIoHostile, DoubleCoordinateBeyondFloatRangeIsRefused) {
+  const auto path = temp_file("x_1e300.pcd");
+  write_bytes(path, header("x y z", "8 4 4", "F F F", "1 1 1", 2, 2, "ascii") + "1 2 3\n1e300 2 3\n");
+  EXPECT_EQ(load_in_child(path, "point 1: x = 1e+300"), kRefusedWithPath);
+}
+
 TEST(PcdIoHostile, RingOutOfRangeIsRefused) {
   Cloud c = sample_cloud();
   c[42].ring = 65535;
