@@ -1,7 +1,9 @@
 #pragma once
 /// \file
-/// Reading and writing PCD files (ASCII, binary, binary_compressed) through PCL, with
-/// errors that name the file and what was expected. Files may carry any subset of the
+/// Reading and writing PCD files (ASCII, binary, binary_compressed), with errors that name
+/// the file and what was expected. Reading parses and checks the file here (LZF through
+/// PCL's decoder, after the sizes are checked); writing goes through PCL. For PLY files and
+/// for picking the reader by extension see cloud_io.hpp. Files may carry any subset of the
 /// optional fields; which ones were present is reported so callers can recover the rest
 /// (e.g. scan lines from geometry when `ring` is absent).
 #include <string>
