@@ -21,7 +21,8 @@ namespace rgbdt::cloud::fuzz {
 inline int cloud_input(const std::uint8_t* data, std::size_t size) {
   const bool ply = size >= 3 && data[0] == 'p' && data[1] == 'l' && data[2] == 'y';
   const std::string path = (std::getenv("TMPDIR") ? std::string(std::getenv("TMPDIR")) : "/tmp") +
-                           "/rgbdt_cloud_fuzz_" + std::to_string(::getpid()) + (ply ? ".ply" : ".pcd");
+                           "/rgbdt_cloud_fuzz_" + std::to_string(::getpid()) +
+                           (ply ? ".ply" : ".pcd");
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (!f) std::abort();
   if (size && std::fwrite(data, 1, size, f) != size) std::abort();

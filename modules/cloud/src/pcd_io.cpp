@@ -58,7 +58,8 @@ std::string join(const std::vector<std::string_view>& tokens) {
 // WIDTH x HEIGHT == POINTS. Nothing is allocated from a header value here.
 PcdHeader parse_header(const std::string& bytes, const std::string& path) {
   if (bytes.empty()) {
-    throw core::Error(path, "file is empty (0 bytes), expected a PCD header (VERSION, FIELDS, ...)");
+    throw core::Error(path,
+                      "file is empty (0 bytes), expected a PCD header (VERSION, FIELDS, ...)");
   }
   std::map<std::string, std::vector<std::string_view>> values;
   std::size_t pos = 0;
@@ -85,8 +86,8 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
     if (tokens.empty() || tokens[0][0] == '#') continue;
     std::string key(tokens[0]);
     if (key == "COLUMNS") key = "FIELDS";  // PCD 0.5
-    static const char* kKeys[] = {"VERSION", "FIELDS", "SIZE", "TYPE", "COUNT", "WIDTH",
-                                  "HEIGHT", "VIEWPOINT", "POINTS", "DATA"};
+    static const char* kKeys[] = {"VERSION", "FIELDS", "SIZE",      "TYPE",   "COUNT",
+                                  "WIDTH",   "HEIGHT", "VIEWPOINT", "POINTS", "DATA"};
     if (std::find(std::begin(kKeys), std::end(kKeys), key) == std::end(kKeys)) {
       throw core::Error(path, "PCD header line " + std::to_string(line_no) + " starts with " +
                                   quote(tokens[0]) +
@@ -94,10 +95,12 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
                                   "VIEWPOINT POINTS DATA");
     }
     if (values.count(key)) {
-      throw core::Error(path, "PCD header repeats " + key + " (line " + std::to_string(line_no) + ")");
+      throw core::Error(path,
+                        "PCD header repeats " + key + " (line " + std::to_string(line_no) + ")");
     }
     if (tokens.size() < 2) {
-      throw core::Error(path, "PCD header " + key + " has no value (line " + std::to_string(line_no) + ")");
+      throw core::Error(
+          path, "PCD header " + key + " has no value (line " + std::to_string(line_no) + ")");
     }
     values[key] = {tokens.begin() + 1, tokens.end()};
     if (key == "DATA") have_data = true;
@@ -115,17 +118,20 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
   const auto& types = values["TYPE"];
   const std::size_t n_fields = names.size();
   if (n_fields > detail::kMaxFields) {
-    throw core::Error(path, "PCD header has " + std::to_string(n_fields) + " FIELDS, expected at most " +
-                                std::to_string(detail::kMaxFields));
+    throw core::Error(path, "PCD header has " + std::to_string(n_fields) +
+                                " FIELDS, expected at most " + std::to_string(detail::kMaxFields));
   }
-  std::vector<std::string_view> counts = values.count("COUNT") ? values["COUNT"]
-                                                               : std::vector<std::string_view>(n_fields, "1");
-  for (const auto& [key, list] : {std::pair<const char*, const std::vector<std::string_view>*>{"SIZE", &sizes},
-                                  {"TYPE", &types}, {"COUNT", &counts}}) {
+  std::vector<std::string_view> counts =
+      values.count("COUNT") ? values["COUNT"] : std::vector<std::string_view>(n_fields, "1");
+  for (const auto& [key, list] :
+       {std::pair<const char*, const std::vector<std::string_view>*>{"SIZE", &sizes},
+        {"TYPE", &types},
+        {"COUNT", &counts}}) {
     if (list->size() != n_fields) {
-      throw core::Error(path, std::string("PCD header has ") + std::to_string(n_fields) + " FIELDS (" +
-                                  join(names) + ") but " + std::to_string(list->size()) + " " + key +
-                                  " values (" + join(*list) + "), expected one per field");
+      throw core::Error(path, std::string("PCD header has ") + std::to_string(n_fields) +
+                                  " FIELDS (" + join(names) + ") but " +
+                                  std::to_string(list->size()) + " " + key + " values (" +
+                                  join(*list) + "), expected one per field");
     }
   }
   std::size_t offset = 0;
@@ -134,28 +140,30 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
     f.name = std::string(names[k]);
     const auto size = core::parse_integer(sizes[k], 1, 8);
     if (!size || (*size != 1 && *size != 2 && *size != 4 && *size != 8)) {
-      throw core::Error(path, "PCD field " + f.name + " has SIZE " + quote(sizes[k]) +
-                                  ", expected 1, 2, 4 or 8");
+      throw core::Error(
+          path, "PCD field " + f.name + " has SIZE " + quote(sizes[k]) + ", expected 1, 2, 4 or 8");
     }
     f.size = static_cast<std::size_t>(*size);
     if (types[k] == "F") {
       f.kind = Kind::kFloat;
       if (f.size != 4 && f.size != 8) {
-        throw core::Error(path, "PCD field " + f.name + " has TYPE F with SIZE " + std::to_string(f.size) +
-                                    ", expected SIZE 4 or 8 for floats");
+        throw core::Error(path, "PCD field " + f.name + " has TYPE F with SIZE " +
+                                    std::to_string(f.size) + ", expected SIZE 4 or 8 for floats");
       }
     } else if (types[k] == "U") {
       f.kind = Kind::kUint;
     } else if (types[k] == "I") {
       f.kind = Kind::kInt;
     } else {
-      throw core::Error(path, "PCD field " + f.name + " has TYPE " + quote(types[k]) +
-                                  ", expected F, U or I");
+      throw core::Error(
+          path, "PCD field " + f.name + " has TYPE " + quote(types[k]) + ", expected F, U or I");
     }
-    const auto count = core::parse_integer(counts[k], 1, static_cast<long long>(detail::kMaxPointStep));
+    const auto count =
+        core::parse_integer(counts[k], 1, static_cast<long long>(detail::kMaxPointStep));
     if (!count) {
       throw core::Error(path, "PCD field " + f.name + " has COUNT " + quote(counts[k]) +
-                                  ", expected a whole number from 1 to " + std::to_string(detail::kMaxPointStep));
+                                  ", expected a whole number from 1 to " +
+                                  std::to_string(detail::kMaxPointStep));
     }
     f.count = static_cast<std::size_t>(*count);
     f.offset = offset;
@@ -180,8 +188,9 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
     if (!values.count(key)) return std::nullopt;
     const auto& list = values[key];
     if (list.size() != 1) {
-      throw core::Error(path, std::string("PCD header ") + key + " has " + std::to_string(list.size()) +
-                                  " values (" + join(list) + "), expected one");
+      throw core::Error(path, std::string("PCD header ") + key + " has " +
+                                  std::to_string(list.size()) + " values (" + join(list) +
+                                  "), expected one");
     }
     return list[0];
   };
@@ -191,9 +200,10 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
   if (const auto p = single("POINTS")) {
     const std::uint64_t points = whole("POINTS", *p);
     if (points != h.points) {
-      throw core::Error(path, "PCD header says POINTS " + std::to_string(points) + " but WIDTH x HEIGHT = " +
-                                  std::to_string(width) + " x " + std::to_string(height) + " = " +
-                                  std::to_string(h.points) + ", expected them equal");
+      throw core::Error(path, "PCD header says POINTS " + std::to_string(points) +
+                                  " but WIDTH x HEIGHT = " + std::to_string(width) + " x " +
+                                  std::to_string(height) + " = " + std::to_string(h.points) +
+                                  ", expected them equal");
     }
   }
   if (h.points > 0xffffffffULL) {
@@ -230,8 +240,8 @@ std::uint32_t read_u32_le(const std::string& bytes, std::size_t at) {
 }
 
 std::string points_times_step(const PcdHeader& h) {
-  return std::to_string(h.points) + " points x " + std::to_string(h.point_step) + " bytes = " +
-         std::to_string(h.points * h.point_step) + " bytes";
+  return std::to_string(h.points) + " points x " + std::to_string(h.point_step) +
+         " bytes = " + std::to_string(h.points * h.point_step) + " bytes";
 }
 
 void decode_binary(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
@@ -239,8 +249,9 @@ void decode_binary(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
   const std::uint64_t need = h.points * h.point_step;
   const std::uint64_t have = bytes.size() - h.data_offset;
   if (need > have) {
-    throw core::Error(path, "DATA binary needs " + points_times_step(h) + " after the header, the file holds " +
-                                std::to_string(have) + " (truncated, or POINTS too large)");
+    throw core::Error(path, "DATA binary needs " + points_times_step(h) +
+                                " after the header, the file holds " + std::to_string(have) +
+                                " (truncated, or POINTS too large)");
   }
   raw.data = reinterpret_cast<const std::uint8_t*>(bytes.data() + h.data_offset);
 }
@@ -250,8 +261,9 @@ void decode_compressed(const std::string& bytes, const PcdHeader& h, RawCloud& r
   const std::uint64_t need = h.points * h.point_step;
   const std::uint64_t have = bytes.size() - h.data_offset;
   if (have < 8) {
-    throw core::Error(path, "DATA binary_compressed needs 8 bytes of sizes after the header, the file holds " +
-                                std::to_string(have));
+    throw core::Error(
+        path, "DATA binary_compressed needs 8 bytes of sizes after the header, the file holds " +
+                  std::to_string(have));
   }
   const std::uint32_t compressed = read_u32_le(bytes, h.data_offset);
   const std::uint32_t uncompressed = read_u32_le(bytes, h.data_offset + 4);
@@ -266,26 +278,30 @@ void decode_compressed(const std::string& bytes, const PcdHeader& h, RawCloud& r
                                 " after the header (truncated or corrupt)");
   }
   if (uncompressed != need) {
-    throw core::Error(path, "binary_compressed PCD has uncompressed size " + std::to_string(uncompressed) +
-                                ", expected " + points_times_step(h) + " from the header");
+    throw core::Error(path, "binary_compressed PCD has uncompressed size " +
+                                std::to_string(uncompressed) + ", expected " +
+                                points_times_step(h) + " from the header");
   }
   if (uncompressed > kMaxLzfExpansion * compressed) {
     throw core::Error(path, "binary_compressed PCD claims " + std::to_string(uncompressed) +
                                 " uncompressed bytes from " + std::to_string(compressed) +
-                                " compressed, expected at most " + std::to_string(kMaxLzfExpansion) +
+                                " compressed, expected at most " +
+                                std::to_string(kMaxLzfExpansion) +
                                 " times as many (LZF's largest expansion)");
   }
   if (uncompressed > detail::kMaxBodyBytes) {
-    throw core::Error(path, "binary_compressed PCD has uncompressed size " + std::to_string(uncompressed) +
-                                ", expected at most " + std::to_string(detail::kMaxBodyBytes));
+    throw core::Error(path, "binary_compressed PCD has uncompressed size " +
+                                std::to_string(uncompressed) + ", expected at most " +
+                                std::to_string(detail::kMaxBodyBytes));
   }
   std::vector<std::uint8_t> planar(uncompressed);
   const unsigned int got =
       pcl::lzfDecompress(bytes.data() + h.data_offset + 8, compressed, planar.data(), uncompressed);
   if (got != uncompressed) {
-    throw core::Error(path, "binary_compressed PCD data decompresses to " +
-                                (got == 0 ? std::string("an error") : std::to_string(got) + " bytes") +
-                                ", expected " + std::to_string(uncompressed) + " (corrupt data)");
+    throw core::Error(path,
+                      "binary_compressed PCD data decompresses to " +
+                          (got == 0 ? std::string("an error") : std::to_string(got) + " bytes") +
+                          ", expected " + std::to_string(uncompressed) + " (corrupt data)");
   }
   // The compressed body stores each field for all points, field after field; interleave.
   raw.storage.resize(uncompressed);
@@ -309,8 +325,9 @@ void decode_ascii(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
   if (h.points * per_point * 2 > have + 1) {
     throw core::Error(path, "DATA ascii: POINTS " + std::to_string(h.points) + " with " +
                                 std::to_string(per_point) + " values each need at least " +
-                                std::to_string(h.points * per_point * 2) + " bytes, the file holds " +
-                                std::to_string(have) + " after the header");
+                                std::to_string(h.points * per_point * 2) +
+                                " bytes, the file holds " + std::to_string(have) +
+                                " after the header");
   }
   raw.storage.assign(h.points * h.point_step, 0);
   raw.data = raw.storage.data();
@@ -328,30 +345,32 @@ void decode_ascii(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
     const auto tokens = split(line);
     if (tokens.empty()) continue;
     if (point >= h.points) {
-      throw core::Error(path, "line " + std::to_string(line_no) + " holds more points than POINTS " +
-                                  std::to_string(h.points));
+      throw core::Error(path, "line " + std::to_string(line_no) +
+                                  " holds more points than POINTS " + std::to_string(h.points));
     }
     if (tokens.size() != per_point) {
-      throw core::Error(path, "line " + std::to_string(line_no) + " (point " + std::to_string(point) +
-                                  ") has " + std::to_string(tokens.size()) + " values, expected " +
-                                  std::to_string(per_point) + " (FIELDS with their COUNT)");
+      throw core::Error(path, "line " + std::to_string(line_no) + " (point " +
+                                  std::to_string(point) + ") has " + std::to_string(tokens.size()) +
+                                  " values, expected " + std::to_string(per_point) +
+                                  " (FIELDS with their COUNT)");
     }
     std::uint8_t* record = raw.storage.data() + point * h.point_step;
     std::size_t t = 0;
     for (const auto& f : h.fields) {
       for (std::size_t c = 0; c < f.count; ++c, ++t) {
         if (!detail::parse_ascii_value(tokens[t], f.kind, f.size, record + f.offset + c * f.size)) {
-          throw core::Error(path, "line " + std::to_string(line_no) + " (point " + std::to_string(point) +
-                                      "), field " + f.name + ": " + quote(tokens[t]) + " is not a " +
-                                      (f.kind == Kind::kFloat ? "number" : "whole number in range of its TYPE"));
+          throw core::Error(
+              path, "line " + std::to_string(line_no) + " (point " + std::to_string(point) +
+                        "), field " + f.name + ": " + quote(tokens[t]) + " is not a " +
+                        (f.kind == Kind::kFloat ? "number" : "whole number in range of its TYPE"));
         }
       }
     }
     ++point;
   }
   if (point != h.points) {
-    throw core::Error(path, "DATA ascii holds " + std::to_string(point) + " points, expected POINTS " +
-                                std::to_string(h.points));
+    throw core::Error(path, "DATA ascii holds " + std::to_string(point) +
+                                " points, expected POINTS " + std::to_string(h.points));
   }
 }
 
@@ -365,9 +384,15 @@ LoadedCloud load_pcd(const std::string& path) {
   raw.point_step = h.point_step;
   raw.points = static_cast<std::size_t>(h.points);
   switch (h.data) {
-    case DataFormat::kAscii: decode_ascii(bytes, h, raw, path); break;
-    case DataFormat::kBinary: decode_binary(bytes, h, raw, path); break;
-    case DataFormat::kBinaryCompressed: decode_compressed(bytes, h, raw, path); break;
+    case DataFormat::kAscii:
+      decode_ascii(bytes, h, raw, path);
+      break;
+    case DataFormat::kBinary:
+      decode_binary(bytes, h, raw, path);
+      break;
+    case DataFormat::kBinaryCompressed:
+      decode_compressed(bytes, h, raw, path);
+      break;
   }
   return detail::to_loaded_cloud(raw, path, "PCD");
 }

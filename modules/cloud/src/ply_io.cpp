@@ -54,10 +54,10 @@ bool scalar_type(std::string_view name, Kind* kind, std::size_t* size) {
     std::size_t size;
   };
   static const Type kTypes[] = {
-      {"char", Kind::kInt, 1},     {"int8", Kind::kInt, 1},     {"uchar", Kind::kUint, 1},
-      {"uint8", Kind::kUint, 1},   {"short", Kind::kInt, 2},    {"int16", Kind::kInt, 2},
-      {"ushort", Kind::kUint, 2},  {"uint16", Kind::kUint, 2},  {"int", Kind::kInt, 4},
-      {"int32", Kind::kInt, 4},    {"uint", Kind::kUint, 4},    {"uint32", Kind::kUint, 4},
+      {"char", Kind::kInt, 1},     {"int8", Kind::kInt, 1},      {"uchar", Kind::kUint, 1},
+      {"uint8", Kind::kUint, 1},   {"short", Kind::kInt, 2},     {"int16", Kind::kInt, 2},
+      {"ushort", Kind::kUint, 2},  {"uint16", Kind::kUint, 2},   {"int", Kind::kInt, 4},
+      {"int32", Kind::kInt, 4},    {"uint", Kind::kUint, 4},     {"uint32", Kind::kUint, 4},
       {"float", Kind::kFloat, 4},  {"float32", Kind::kFloat, 4}, {"double", Kind::kFloat, 8},
       {"float64", Kind::kFloat, 8}};
   for (const auto& t : kTypes) {
@@ -82,8 +82,8 @@ PlyHeader parse_header(const std::string& bytes, const std::string& path) {
   int line_no = 0;
   while (true) {
     if (pos >= bytes.size()) {
-      throw core::Error(path, "PLY header ends after " + std::to_string(line_no) +
-                                  " lines without 'end_header'");
+      throw core::Error(
+          path, "PLY header ends after " + std::to_string(line_no) + " lines without 'end_header'");
     }
     std::size_t eol = bytes.find('\n', pos);
     if (eol == std::string::npos) eol = bytes.size();
@@ -126,15 +126,15 @@ PlyHeader parse_header(const std::string& bytes, const std::string& path) {
       }
       have_format = true;
     } else if (key == "element") {
-      const auto count = tokens.size() == 3 ? core::parse_integer(tokens[2], 0, 0xffffffffLL)
-                                            : std::nullopt;
+      const auto count =
+          tokens.size() == 3 ? core::parse_integer(tokens[2], 0, 0xffffffffLL) : std::nullopt;
       if (!count) {
         throw core::Error(path, "PLY element line " + quote(line) + where +
                                     ", expected 'element <name> <count 0..4294967295>'");
       }
       if (h.elements.size() >= detail::kMaxFields) {
-        throw core::Error(path, "PLY header declares more than " + std::to_string(detail::kMaxFields) +
-                                    " elements");
+        throw core::Error(path, "PLY header declares more than " +
+                                    std::to_string(detail::kMaxFields) + " elements");
       }
       PlyElement e;
       e.name = std::string(tokens[1]);
@@ -158,7 +158,8 @@ PlyHeader parse_header(const std::string& bytes, const std::string& path) {
       }
       RawField f;
       if (tokens.size() != 3 || !scalar_type(tokens[1], &f.kind, &f.size)) {
-        throw core::Error(path, "PLY property " + quote(line) + where + ", expected 'property <type> <name>' with type one of " +
+        throw core::Error(path, "PLY property " + quote(line) + where +
+                                    ", expected 'property <type> <name>' with type one of " +
                                     kTypeList);
       }
       f.name = std::string(tokens[2]);
@@ -175,7 +176,8 @@ PlyHeader parse_header(const std::string& bytes, const std::string& path) {
       e.step += f.size;
       e.properties.push_back(std::move(f));
     } else {
-      throw core::Error(path, "PLY header line " + std::to_string(line_no) + " starts with " + quote(key) +
+      throw core::Error(path, "PLY header line " + std::to_string(line_no) + " starts with " +
+                                  quote(key) +
                                   ", expected format, element, property, comment or end_header");
     }
   }
@@ -227,21 +229,25 @@ LoadedCloud load_ply(const std::string& path) {
                                     "vertex first");
       }
       if (e.count * e.step > left) {
-        throw core::Error(path, "PLY element " + e.name + " needs " + std::to_string(e.count * e.step) +
-                                    " bytes, the file holds " + std::to_string(left));
+        throw core::Error(path, "PLY element " + e.name + " needs " +
+                                    std::to_string(e.count * e.step) + " bytes, the file holds " +
+                                    std::to_string(left));
       }
       pos += static_cast<std::size_t>(e.count * e.step);
     } else {
       if (e.count * 2 > left + 1) {
         throw core::Error(path, "PLY element " + e.name + " has " + std::to_string(e.count) +
-                                    " lines, the file holds only " + std::to_string(left) + " bytes");
+                                    " lines, the file holds only " + std::to_string(left) +
+                                    " bytes");
       }
       pos = skip_ascii_lines(bytes, pos, e.count);
     }
   }
-  if (!vertex) throw core::Error(path, "PLY header has no 'element vertex', expected the points there");
+  if (!vertex)
+    throw core::Error(path, "PLY header has no 'element vertex', expected the points there");
   if (vertex->has_list) {
-    throw core::Error(path, "PLY element vertex has a list property, expected scalar properties only");
+    throw core::Error(path,
+                      "PLY element vertex has a list property, expected scalar properties only");
   }
 
   RawCloud raw;
@@ -256,7 +262,8 @@ LoadedCloud load_ply(const std::string& path) {
     const std::uint64_t need = vertex->count * vertex->step;
     if (need > left) {
       throw core::Error(path, "PLY element vertex " + std::to_string(vertex->count) + " needs " +
-                                  std::to_string(vertex->count) + " vertices x " + std::to_string(vertex->step) +
+                                  std::to_string(vertex->count) + " vertices x " +
+                                  std::to_string(vertex->step) +
                                   " bytes = " + std::to_string(need) + " bytes, the file holds " +
                                   std::to_string(left) + " (truncated, or the count is too large)");
     }
@@ -281,8 +288,8 @@ LoadedCloud load_ply(const std::string& path) {
   if (vertex->count * per_point * 2 > left + 1) {
     throw core::Error(path, "PLY element vertex " + std::to_string(vertex->count) + " with " +
                                 std::to_string(per_point) + " values each needs at least " +
-                                std::to_string(vertex->count * per_point * 2) + " bytes, the file holds " +
-                                std::to_string(left));
+                                std::to_string(vertex->count * per_point * 2) +
+                                " bytes, the file holds " + std::to_string(left));
   }
   raw.storage.assign(raw.points * raw.point_step, 0);
   raw.data = raw.storage.data();
@@ -298,17 +305,19 @@ LoadedCloud load_ply(const std::string& path) {
     const auto tokens = split(line);
     if (tokens.empty()) continue;
     if (tokens.size() != per_point) {
-      throw core::Error(path, "line " + std::to_string(line_no) + " (vertex " + std::to_string(point) +
-                                  ") has " + std::to_string(tokens.size()) + " values, expected " +
-                                  std::to_string(per_point) + " (one per vertex property)");
+      throw core::Error(path, "line " + std::to_string(line_no) + " (vertex " +
+                                  std::to_string(point) + ") has " + std::to_string(tokens.size()) +
+                                  " values, expected " + std::to_string(per_point) +
+                                  " (one per vertex property)");
     }
     std::uint8_t* record = raw.storage.data() + point * raw.point_step;
     for (std::size_t k = 0; k < per_point; ++k) {
       const auto& f = raw.fields[k];
       if (!detail::parse_ascii_value(tokens[k], f.kind, f.size, record + f.offset)) {
-        throw core::Error(path, "line " + std::to_string(line_no) + " (vertex " + std::to_string(point) +
-                                    "), property " + f.name + ": " + quote(tokens[k]) + " is not a " +
-                                    (f.kind == Kind::kFloat ? "number" : "whole number in range of its type"));
+        throw core::Error(
+            path, "line " + std::to_string(line_no) + " (vertex " + std::to_string(point) +
+                      "), property " + f.name + ": " + quote(tokens[k]) + " is not a " +
+                      (f.kind == Kind::kFloat ? "number" : "whole number in range of its type"));
       }
     }
     ++point;
@@ -325,7 +334,8 @@ LoadedCloud load_cloud(const std::string& path) {
   for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".pcd") return load_pcd(path);
   if (ext == ".ply") return load_ply(path);
-  throw core::Error(path, "point cloud file has extension " + quote(ext) + ", expected .pcd or .ply");
+  throw core::Error(path,
+                    "point cloud file has extension " + quote(ext) + ", expected .pcd or .ply");
 }
 
 }  // namespace rgbdt::cloud

@@ -19,21 +19,61 @@ namespace {
 double read_value(const std::uint8_t* p, const RawField& f) {
   switch (f.kind) {
     case Kind::kFloat:
-      if (f.size == 4) { float v; std::memcpy(&v, p, 4); return v; }
-      { double v; std::memcpy(&v, p, 8); return v; }
+      if (f.size == 4) {
+        float v;
+        std::memcpy(&v, p, 4);
+        return v;
+      }
+      {
+        double v;
+        std::memcpy(&v, p, 8);
+        return v;
+      }
     case Kind::kInt:
       switch (f.size) {
-        case 1: { std::int8_t v; std::memcpy(&v, p, 1); return v; }
-        case 2: { std::int16_t v; std::memcpy(&v, p, 2); return v; }
-        case 4: { std::int32_t v; std::memcpy(&v, p, 4); return v; }
-        default: { std::int64_t v; std::memcpy(&v, p, 8); return static_cast<double>(v); }
+        case 1: {
+          std::int8_t v;
+          std::memcpy(&v, p, 1);
+          return v;
+        }
+        case 2: {
+          std::int16_t v;
+          std::memcpy(&v, p, 2);
+          return v;
+        }
+        case 4: {
+          std::int32_t v;
+          std::memcpy(&v, p, 4);
+          return v;
+        }
+        default: {
+          std::int64_t v;
+          std::memcpy(&v, p, 8);
+          return static_cast<double>(v);
+        }
       }
     case Kind::kUint:
       switch (f.size) {
-        case 1: { std::uint8_t v; std::memcpy(&v, p, 1); return v; }
-        case 2: { std::uint16_t v; std::memcpy(&v, p, 2); return v; }
-        case 4: { std::uint32_t v; std::memcpy(&v, p, 4); return v; }
-        default: { std::uint64_t v; std::memcpy(&v, p, 8); return static_cast<double>(v); }
+        case 1: {
+          std::uint8_t v;
+          std::memcpy(&v, p, 1);
+          return v;
+        }
+        case 2: {
+          std::uint16_t v;
+          std::memcpy(&v, p, 2);
+          return v;
+        }
+        case 4: {
+          std::uint32_t v;
+          std::memcpy(&v, p, 4);
+          return v;
+        }
+        default: {
+          std::uint64_t v;
+          std::memcpy(&v, p, 8);
+          return static_cast<double>(v);
+        }
       }
   }
   return std::nan("");
@@ -174,16 +214,30 @@ bool parse_ascii_value(std::string_view token, Kind kind, std::size_t size, std:
   if (v < lo || v > hi) return false;
   if (kind == Kind::kInt) {
     switch (size) {
-      case 1: store<std::int8_t>(v, out); break;
-      case 2: store<std::int16_t>(v, out); break;
-      case 4: store<std::int32_t>(v, out); break;
-      default: store<std::int64_t>(v, out); break;
+      case 1:
+        store<std::int8_t>(v, out);
+        break;
+      case 2:
+        store<std::int16_t>(v, out);
+        break;
+      case 4:
+        store<std::int32_t>(v, out);
+        break;
+      default:
+        store<std::int64_t>(v, out);
+        break;
     }
   } else {
     switch (size) {
-      case 1: store<std::uint8_t>(v, out); break;
-      case 2: store<std::uint16_t>(v, out); break;
-      case 4: store<std::uint32_t>(v, out); break;
+      case 1:
+        store<std::uint8_t>(v, out);
+        break;
+      case 2:
+        store<std::uint16_t>(v, out);
+        break;
+      case 4:
+        store<std::uint32_t>(v, out);
+        break;
       default:
         // 2^64 - 1 rounds up to 2^64 as a double; clamp below it before converting.
         store<std::uint64_t>(std::min(v, 18446744073709549568.0), out);
@@ -200,8 +254,8 @@ LoadedCloud to_loaded_cloud(const RawCloud& raw, const std::string& path, const 
   if (!fx || !fy || !fz) {
     std::string fields;
     for (const auto& f : raw.fields) fields += (fields.empty() ? "" : " ") + f.name;
-    throw core::Error(path, std::string(format) + " has fields '" + fields +
-                                "', expected at least x y z");
+    throw core::Error(
+        path, std::string(format) + " has fields '" + fields + "', expected at least x y z");
   }
   const auto* fi = find_field(raw, {"intensity", "i", "reflectivity"});
   const auto* fr = find_field(raw, {"ring", "line", "laser_id"});

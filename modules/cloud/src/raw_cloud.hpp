@@ -18,9 +18,9 @@ enum class Kind { kInt, kUint, kFloat };
 struct RawField {
   std::string name;
   Kind kind = Kind::kFloat;
-  std::size_t size = 4;   // bytes per element: 1, 2, 4 or 8
-  std::size_t count = 1;  // elements per point
-  std::size_t offset = 0; // within a record
+  std::size_t size = 4;    // bytes per element: 1, 2, 4 or 8
+  std::size_t count = 1;   // elements per point
+  std::size_t offset = 0;  // within a record
 };
 
 struct RawCloud {

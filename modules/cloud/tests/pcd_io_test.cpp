@@ -123,15 +123,15 @@ using rgbdt::cloud::test_support::kRefusedWithPath;
 int load_in_child(const fs::path& path, const std::string& part = "",
                   std::size_t cap_bytes = std::size_t{512} << 20) {
   return rgbdt::cloud::test_support::load_in_child([](const std::string& p) { load_pcd(p); }, path,
-                                              part, cap_bytes);
+                                                   part, cap_bytes);
 }
 
 std::string header(const std::string& fields, const std::string& sizes, const std::string& types,
                    const std::string& counts, long width, long points, const std::string& data) {
-  return "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS " + fields +
-         "\nSIZE " + sizes + "\nTYPE " + types + "\nCOUNT " + counts + "\nWIDTH " +
-         std::to_string(width) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " +
-         std::to_string(points) + "\nDATA " + data + "\n";
+  return "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS " + fields + "\nSIZE " +
+         sizes + "\nTYPE " + types + "\nCOUNT " + counts + "\nWIDTH " + std::to_string(width) +
+         "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(points) + "\nDATA " +
+         data + "\n";
 }
 
 void write_bytes(const fs::path& path, const std::string& bytes) {
@@ -255,8 +255,8 @@ TEST(PcdIoHostile, AsciiPointsBeyondTheFileAreRefused) {
 
 TEST(PcdIoHostile, AsciiWithFewerPointsThanPromisedIsRefused) {
   const auto path = temp_file("ascii_short.pcd");
-  write_bytes(path,
-              header("x y z", "4 4 4", "F F F", "1 1 1", 3, 3, "ascii") + "1.0 2.0 3.0\n4.0 5.0 6.0\n");
+  write_bytes(path, header("x y z", "4 4 4", "F F F", "1 1 1", 3, 3, "ascii") +
+                        "1.0 2.0 3.0\n4.0 5.0 6.0\n");
   EXPECT_EQ(load_in_child(path, "holds 2 points, expected POINTS 3"), kRefusedWithPath);
   // A value that is not a number is named with its line and field.
   write_bytes(path, header("x y z", "4 4 4", "F F F", "1 1 1", 2, 2, "ascii") +
@@ -268,9 +268,11 @@ TEST(PcdIoHostile, HeaderCountMismatchIsRefused) {
   const auto path = temp_file("mismatch.pcd");
   write_bytes(path, header("x y z t", "4 4 4", "F F F F", "1 1 1 1", 1, 1, "ascii") + "1 2 3 4\n");
   EXPECT_EQ(load_in_child(path, "SIZE"), kRefusedWithPath);
-  write_bytes(path, header("x y z", "4 4 3", "F F F", "1 1 1", 1, 1, "binary") + std::string(11, '\0'));
+  write_bytes(path,
+              header("x y z", "4 4 3", "F F F", "1 1 1", 1, 1, "binary") + std::string(11, '\0'));
   EXPECT_EQ(load_in_child(path, "SIZE '3'"), kRefusedWithPath);
-  write_bytes(path, header("x y z", "4 4 4", "F F F", "1 1 1", 2, 3, "ascii") + "1 2 3\n4 5 6\n7 8 9\n");
+  write_bytes(path,
+              header("x y z", "4 4 4", "F F F", "1 1 1", 2, 3, "ascii") + "1 2 3\n4 5 6\n7 8 9\n");
   EXPECT_EQ(load_in_child(path, "WIDTH"), kRefusedWithPath);
 }
 
@@ -289,7 +291,8 @@ TEST(PcdIoHostile, TimeNotFiniteOrFarOffIsRefusedNamingPointAndValue) {
 
 TEST(PcdIoHostile, DoubleCoordinateBeyondFloatRangeIsRefused) {
   const auto path = temp_file("x_1e300.pcd");
-  write_bytes(path, header("x y z", "8 4 4", "F F F", "1 1 1", 2, 2, "ascii") + "1 2 3\n1e300 2 3\n");
+  write_bytes(path,
+              header("x y z", "8 4 4", "F F F", "1 1 1", 2, 2, "ascii") + "1 2 3\n1e300 2 3\n");
   EXPECT_EQ(load_in_child(path, "point 1: x = 1e+300"), kRefusedWithPath);
 }
 
@@ -315,7 +318,8 @@ TEST(PcdIo, RealFilesLoadWithThePointCountPclGives) {
   std::vector<fs::path> files;
   for (const char* dir : {"discocal", "pjlab-sensorscalibration"}) {
     if (!fs::exists(data / dir)) {
-      ADD_FAILURE() << "real data folder missing: " << data / dir << " (CI keeps ../shared beside the checkout)";
+      ADD_FAILURE() << "real data folder missing: " << data / dir
+                    << " (CI keeps ../shared beside the checkout)";
       continue;
     }
     for (const auto& e : fs::recursive_directory_iterator(data / dir)) {
@@ -325,7 +329,8 @@ TEST(PcdIo, RealFilesLoadWithThePointCountPclGives) {
   EXPECT_GE(files.size(), 19u);
   for (const auto& path : files) {
     if (!fs::exists(path)) {
-      ADD_FAILURE() << "real data file missing: " << path << " (CI keeps ../shared beside the checkout)";
+      ADD_FAILURE() << "real data file missing: " << path
+                    << " (CI keeps ../shared beside the checkout)";
       continue;
     }
     pcl::PCLPointCloud2 msg;
@@ -333,7 +338,8 @@ TEST(PcdIo, RealFilesLoadWithThePointCountPclGives) {
     pcl::PointCloud<pcl::PointXYZ> xyz;
     pcl::fromPCLPointCloud2(msg, xyz);
     std::size_t finite = 0;
-    for (const auto& p : xyz) finite += std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+    for (const auto& p : xyz)
+      finite += std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
     const LoadedCloud out = load_pcd(path.string());
     EXPECT_EQ(out.cloud->size(), finite) << path;
     EXPECT_GT(finite, 50000u) << path;

@@ -30,7 +30,7 @@ void write_bytes(const fs::path& path, const std::string& bytes) {
 
 int load_in_child(const fs::path& path, const std::string& part = "") {
   return rgbdt::cloud::test_support::load_in_child([](const std::string& p) { load_cloud(p); },
-                                                    path, part);
+                                                   path, part);
 }
 
 Cloud sample_cloud() {
@@ -120,8 +120,10 @@ TEST(PlyIo, CloudCompareScalarFieldsAndBigEndianLoad) {
 
 TEST(PlyIo, AsciiXyzOnlyDropsNonFinitePoints) {
   const auto path = temp_file("xyz.ply");
-  write_bytes(path, "ply\r\nformat ascii 1.0\r\nelement vertex 3\r\nproperty float x\r\n"
-                    "property float y\r\nproperty float z\r\nend_header\r\n1 2 3\r\nnan 0 0\r\n4 5 6\r\n");
+  write_bytes(
+      path,
+      "ply\r\nformat ascii 1.0\r\nelement vertex 3\r\nproperty float x\r\n"
+      "property float y\r\nproperty float z\r\nend_header\r\n1 2 3\r\nnan 0 0\r\n4 5 6\r\n");
   const LoadedCloud out = load_ply(path.string());
   EXPECT_FALSE(out.has_intensity || out.has_ring || out.has_t);
   ASSERT_EQ(out.cloud->size(), 2u);
@@ -129,8 +131,9 @@ TEST(PlyIo, AsciiXyzOnlyDropsNonFinitePoints) {
 }
 
 TEST(PlyIoHostile, BrokenFilesAreRefusedNamingTheFile) {
-  const std::string h3 = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
-                         "property float z\n";
+  const std::string h3 =
+      "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+      "property float z\n";
   struct Case {
     const char* name;
     std::string bytes;
@@ -140,7 +143,8 @@ TEST(PlyIoHostile, BrokenFilesAreRefusedNamingTheFile) {
       {"empty.ply", "", "empty"},
       {"not_ply.ply", "plx\nformat ascii 1.0\n", "expected 'ply'"},
       {"no_end.ply", "ply\nformat ascii 1.0\nelement vertex 1\n", "end_header"},
-      {"bad_format.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n", "binary_middle_endian"},
+      {"bad_format.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n",
+       "binary_middle_endian"},
       {"no_format.ply", "ply\nelement vertex 0\nend_header\n", "format"},
       {"no_vertex.ply", "ply\nformat ascii 1.0\nelement face 0\nend_header\n", "element vertex"},
       {"no_xyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n",
@@ -149,21 +153,26 @@ TEST(PlyIoHostile, BrokenFilesAreRefusedNamingTheFile) {
        "'property float128 x'"},
       {"huge_count.ply",
        "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\n"
-       "property float y\nproperty float z\nend_header\n" + std::string(1200, '\0'),
+       "property float y\nproperty float z\nend_header\n" +
+           std::string(1200, '\0'),
        "48000000000 bytes"},
       {"ascii_huge_count.ply",
        "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\n"
        "property float z\nend_header\n1 2 3\n",
        "4000000000"},
-      {"short_ascii.ply", h3 + "end_header\n1.0 2.0 3.0\n\n\n\n\n\n\n", "holds 1 vertices, expected 2"},
-      {"wrong_tokens.ply", h3 + "end_header\n1.0 2.0 3.0\n4.0 5.0\n", "(vertex 1) has 2 values, expected 3"},
+      {"short_ascii.ply", h3 + "end_header\n1.0 2.0 3.0\n\n\n\n\n\n\n",
+       "holds 1 vertices, expected 2"},
+      {"wrong_tokens.ply", h3 + "end_header\n1.0 2.0 3.0\n4.0 5.0\n",
+       "(vertex 1) has 2 values, expected 3"},
       {"bad_number.ply", h3 + "end_header\n1 2 3\n4 5 zz\n", "property z: 'zz'"},
       {"ring_big.ply",
-       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty "
+       "float z\n"
        "property uint ring\nend_header\n1 2 3 65535\n",
        "point 0: ring = 65535"},
       {"t_nan.ply",
-       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+       "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty "
+       "float z\n"
        "property float t\nend_header\n1 2 3 nan\n",
        "point 0: t = nan"},
       {"cloud.xyz", "1 2 3\n", "expected .pcd or .ply"},

@@ -108,9 +108,11 @@ TEST(ImageHeader, AgreesWithOpenCvOnEveryKindItWrites) {
 TEST(ImageHeader, RealThermalPngAndRoadJpegHaveTheirKnownSizes) {
   const fs::path data(RGBDT_SHARED_DATA_DIR);
   const fs::path png = data / "discocal/sample_imgs/tir12/circle_8bit_000.png";
-  const fs::path jpg = data / "pjlab-sensorscalibration/lidar2camera/auto_calib_v2.0/data/ours/1/calib.jpg";
+  const fs::path jpg =
+      data / "pjlab-sensorscalibration/lidar2camera/auto_calib_v2.0/data/ours/1/calib.jpg";
   for (const auto& p : {png, jpg}) {
-    ASSERT_TRUE(fs::exists(p)) << "real data file missing: " << p << " (CI keeps ../shared beside the checkout)";
+    ASSERT_TRUE(fs::exists(p)) << "real data file missing: " << p
+                               << " (CI keeps ../shared beside the checkout)";
   }
   const ImageHeader t = read_image_header(png.string());
   EXPECT_EQ(t.width, 640);
@@ -166,7 +168,8 @@ TEST(ImageHeader, CorruptAndTruncatedHeadersAreRefused) {
   write_bytes(path, std::string("\xff\xd8\xff\xda\x00\x02", 6));
   expect_refused(path, "without a SOF");
   // JPEG: SOF with height 0.
-  write_bytes(path, std::string("\xff\xd8\xff\xc0\x00\x0b\x08\x00\x00\x02\x80\x01\x01\x11\x00", 15));
+  write_bytes(path,
+              std::string("\xff\xd8\xff\xc0\x00\x0b\x08\x00\x00\x02\x80\x01\x01\x11\x00", 15));
   expect_refused(path, "640x0 pixels");
   expect_refused(temp_file("missing.png"), "does not exist");
 }
@@ -174,16 +177,24 @@ TEST(ImageHeader, CorruptAndTruncatedHeadersAreRefused) {
 TEST(ImageHeader, MismatchWithCameraInfoNamesBothFiles) {
   ImageHeader half{320, 256, 16, 1, "png"};
   const std::string m = image_mismatch(half, 640, 512, "thermal/000.png", "thermal.yaml", 16);
-  EXPECT_EQ(m, "thermal/000.png: image is 320x256, thermal.yaml says 640x512 (image_width x image_height)");
+  EXPECT_EQ(
+      m,
+      "thermal/000.png: image is 320x256, thermal.yaml says 640x512 (image_width x image_height)");
   ImageHeader eight{640, 512, 8, 1, "png"};
-  EXPECT_EQ(image_mismatch(eight, 640, 512, "thermal/000.png", "thermal.yaml", 16),
-            "thermal/000.png: image has 8-bit samples, expected 16-bit for the camera of thermal.yaml");
+  EXPECT_EQ(
+      image_mismatch(eight, 640, 512, "thermal/000.png", "thermal.yaml", 16),
+      "thermal/000.png: image has 8-bit samples, expected 16-bit for the camera of thermal.yaml");
   ImageHeader ok{640, 512, 16, 1, "png"};
   EXPECT_EQ(image_mismatch(ok, 640, 512, "thermal/000.png", "thermal.yaml", 16), "");
   EXPECT_EQ(image_mismatch(ok, 640, 512, "thermal/000.png", "thermal.yaml"), "");
   ImageHeader one_bit{640, 512, 1, 1, "png"};
-  EXPECT_NE(image_mismatch(one_bit, 640, 512, "a.png", "c.yaml").find("expected 8 or 16"), std::string::npos);
-  const std::string what = error_of([&] { check_image_matches(half, 640, 512, "thermal/000.png", "thermal.yaml"); });
-  EXPECT_EQ(what, "thermal/000.png: image is 320x256, thermal.yaml says 640x512 (image_width x image_height)");
-  EXPECT_EQ(error_of([&] { check_image_matches(ok, 640, 512, "t.png", "c.yaml", 16); }), "(no error)");
+  EXPECT_NE(image_mismatch(one_bit, 640, 512, "a.png", "c.yaml").find("expected 8 or 16"),
+            std::string::npos);
+  const std::string what =
+      error_of([&] { check_image_matches(half, 640, 512, "thermal/000.png", "thermal.yaml"); });
+  EXPECT_EQ(
+      what,
+      "thermal/000.png: image is 320x256, thermal.yaml says 640x512 (image_width x image_height)");
+  EXPECT_EQ(error_of([&] { check_image_matches(ok, 640, 512, "t.png", "c.yaml", 16); }),
+            "(no error)");
 }
