@@ -39,12 +39,14 @@ std::string hex(unsigned byte) {
   return std::string("0x") + digits[(byte >> 4) & 15] + digits[byte & 15];
 }
 
+std::string label(const ImageHeader& h) { return h.format == "png" ? "PNG" : "JPEG"; }
+
 // Sets h.width/height from the header's values after checking them against the caps.
 void check_size(ImageHeader& h, std::uint64_t width, std::uint64_t height,
                 const std::string& path) {
   if (width == 0 || height == 0 || width > static_cast<std::uint64_t>(kMaxImageSide) ||
       height > static_cast<std::uint64_t>(kMaxImageSide)) {
-    throw Error(path, h.format + " header says " + std::to_string(width) + "x" +
+    throw Error(path, label(h) + " header says " + std::to_string(width) + "x" +
                           std::to_string(height) + " pixels, expected width and height in 1.." +
                           std::to_string(kMaxImageSide));
   }
@@ -54,7 +56,7 @@ void check_size(ImageHeader& h, std::uint64_t width, std::uint64_t height,
                               static_cast<std::uint64_t>(h.height) *
                               static_cast<std::uint64_t>(h.channels) * (h.bit_depth > 8 ? 2u : 1u);
   if (bytes > kMaxImageBytes) {
-    throw Error(path, h.format + " header says " + std::to_string(h.width) + "x" +
+    throw Error(path, label(h) + " header says " + std::to_string(h.width) + "x" +
                           std::to_string(h.height) + " pixels x " + std::to_string(h.channels) +
                           " channels = " + std::to_string(bytes) +
                           " bytes decoded, expected at most " + std::to_string(kMaxImageBytes));
@@ -71,9 +73,6 @@ ImageHeader read_png(std::ifstream& in, const std::string& path) {
   }
   if (be32(&b[8]) != 13 || std::string(reinterpret_cast<const char*>(&b[12]), 4) != "IHDR") {
     throw Error(path, "PNG's first chunk is not a 13-byte IHDR (corrupt or truncated file)");
-  }
-  if (crc32(&b[12], 17) != be32(&b[29])) {
-    throw Error(path, "PNG IHDR chunk fails its CRC check (corrupt file)");
   }
   ImageHeader h;
   h.format = "png";
@@ -114,7 +113,12 @@ ImageHeader read_png(std::ifstream& in, const std::string& path) {
                           std::to_string(b[27]) + "/" + std::to_string(b[28]) +
                           ", expected 0/0/0 or 0/0/1");
   }
+  // The size is checked before the CRC, so that an oversized claim is reported as such
+  // whatever its checksum.
   check_size(h, be32(&b[16]), be32(&b[20]), path);
+  if (crc32(&b[12], 17) != be32(&b[29])) {
+    throw Error(path, "PNG IHDR chunk fails its CRC check (corrupt file)");
+  }
   return h;
 }
 

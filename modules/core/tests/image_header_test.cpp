@@ -130,6 +130,11 @@ TEST(ImageHeader, OversizedImagesAreRefusedFromTheHeader) {
   const auto huge = temp_file("huge.png");
   write_bytes(huge, png_header(30000, 30000, 8, 2));
   expect_refused(huge, "30000x30000 pixels, expected width and height in 1..20000");
+  // The same with a wrong CRC (as a hand-made file has): still refused for its size.
+  std::string no_crc = png_header(30000, 30000, 8, 2);
+  no_crc.replace(29, 4, std::string(4, '\0'));
+  write_bytes(huge, no_crc);
+  expect_refused(huge, "30000x30000 pixels");
   // Within the side cap but 20000 x 20000 x 4 channels x 2 bytes = 3.2 GB decoded.
   const auto wide = temp_file("rgba16.png");
   write_bytes(wide, png_header(20000, 20000, 16, 6));
@@ -152,7 +157,7 @@ TEST(ImageHeader, CorruptAndTruncatedHeadersAreRefused) {
   write_bytes(path, png_header(640, 512, 16, 0).substr(0, 20));
   expect_refused(path, "ends after 20 bytes");
   std::string bad_crc = png_header(640, 512, 16, 0);
-  bad_crc[17] ^= 1;  // width changed, CRC not
+  bad_crc[19] ^= 1;  // width 640 -> 641, CRC unchanged
   write_bytes(path, bad_crc);
   expect_refused(path, "CRC");
   write_bytes(path, png_header(640, 512, 4, 2));
