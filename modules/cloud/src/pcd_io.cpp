@@ -2,97 +2,399 @@
 
 #include <pcl/PCLPointCloud2.h>
 #include <pcl/common/io.h>
+#include <pcl/io/lzf.h>
 #include <pcl/io/pcd_io.h>
 
-#include <cmath>
 #include <cstring>
-#include <filesystem>
-#include <limits>
+#include <map>
+#include <optional>
+#include <vector>
 
+#include "raw_cloud.hpp"
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/parse.hpp"
 
 namespace rgbdt::cloud {
 namespace {
 
-const pcl::PCLPointField* find_field(const pcl::PCLPointCloud2& msg,
-                                     std::initializer_list<const char*> names) {
-  for (const char* name : names) {
-    for (const auto& f : msg.fields) {
-      if (f.name == name) return &f;
-    }
+using detail::Kind;
+using detail::quote;
+using detail::RawCloud;
+using detail::RawField;
+
+// LZF encodes at most 264 output bytes in a 3-byte back reference, so no valid stream
+// expands more than 88 times.
+constexpr std::uint64_t kMaxLzfExpansion = 88;
+
+enum class DataFormat { kAscii, kBinary, kBinaryCompressed };
+
+struct PcdHeader {
+  std::vector<RawField> fields;
+  std::size_t point_step = 0;
+  std::uint64_t points = 0;
+  DataFormat data = DataFormat::kAscii;
+  std::size_t data_offset = 0;  // first byte after the DATA line
+};
+
+std::vector<std::string_view> split(std::string_view line) {
+  std::vector<std::string_view> out;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
+    if (i > start) out.push_back(line.substr(start, i - start));
   }
-  return nullptr;
+  return out;
 }
 
-double read_value(const std::uint8_t* p, const pcl::PCLPointField& f) {
-  switch (f.datatype) {
-    case pcl::PCLPointField::INT8: { std::int8_t v; std::memcpy(&v, p, 1); return v; }
-    case pcl::PCLPointField::UINT8: { std::uint8_t v; std::memcpy(&v, p, 1); return v; }
-    case pcl::PCLPointField::INT16: { std::int16_t v; std::memcpy(&v, p, 2); return v; }
-    case pcl::PCLPointField::UINT16: { std::uint16_t v; std::memcpy(&v, p, 2); return v; }
-    case pcl::PCLPointField::INT32: { std::int32_t v; std::memcpy(&v, p, 4); return v; }
-    case pcl::PCLPointField::UINT32: { std::uint32_t v; std::memcpy(&v, p, 4); return v; }
-    case pcl::PCLPointField::FLOAT32: { float v; std::memcpy(&v, p, 4); return v; }
-    case pcl::PCLPointField::FLOAT64: { double v; std::memcpy(&v, p, 8); return v; }
-    default: return std::nan("");
+std::string join(const std::vector<std::string_view>& tokens) {
+  std::string out;
+  for (const auto& t : tokens) out += (out.empty() ? "" : " ") + std::string(t);
+  return out;
+}
+
+// Reads and checks the header: every keyword's values, the lengths of FIELDS/SIZE/TYPE/COUNT,
+// WIDTH x HEIGHT == POINTS. Nothing is allocated from a header value here.
+PcdHeader parse_header(const std::string& bytes, const std::string& path) {
+  if (bytes.empty()) {
+    throw core::Error(path,
+                      "file is empty (0 bytes), expected a PCD header (VERSION, FIELDS, ...)");
+  }
+  std::map<std::string, std::vector<std::string_view>> values;
+  std::size_t pos = 0;
+  int line_no = 0;
+  bool have_data = false;
+  while (!have_data) {
+    if (pos >= bytes.size()) {
+      throw core::Error(path, "PCD header ends after " + std::to_string(line_no) +
+                                  " lines without a DATA line (expected DATA ascii, binary or "
+                                  "binary_compressed)");
+    }
+    std::size_t eol = bytes.find('\n', pos);
+    if (eol == std::string::npos) eol = bytes.size();
+    if (eol > detail::kMaxHeaderBytes) {
+      throw core::Error(path, "no DATA line within the first " +
+                                  std::to_string(detail::kMaxHeaderBytes) +
+                                  " bytes, expected a PCD header (is this a PCD file?)");
+    }
+    std::string_view line(bytes.data() + pos, eol - pos);
+    pos = eol + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const auto tokens = split(line);
+    if (tokens.empty() || tokens[0][0] == '#') continue;
+    std::string key(tokens[0]);
+    if (key == "COLUMNS") key = "FIELDS";  // PCD 0.5
+    static const char* kKeys[] = {"VERSION", "FIELDS", "SIZE",      "TYPE",   "COUNT",
+                                  "WIDTH",   "HEIGHT", "VIEWPOINT", "POINTS", "DATA"};
+    if (std::find(std::begin(kKeys), std::end(kKeys), key) == std::end(kKeys)) {
+      throw core::Error(path, "PCD header line " + std::to_string(line_no) + " starts with " +
+                                  quote(tokens[0]) +
+                                  ", expected one of VERSION FIELDS SIZE TYPE COUNT WIDTH HEIGHT "
+                                  "VIEWPOINT POINTS DATA");
+    }
+    if (values.count(key)) {
+      throw core::Error(path,
+                        "PCD header repeats " + key + " (line " + std::to_string(line_no) + ")");
+    }
+    if (tokens.size() < 2) {
+      throw core::Error(
+          path, "PCD header " + key + " has no value (line " + std::to_string(line_no) + ")");
+    }
+    values[key] = {tokens.begin() + 1, tokens.end()};
+    if (key == "DATA") have_data = true;
+  }
+  PcdHeader h;
+  h.data_offset = std::min(pos, bytes.size());
+
+  for (const char* required : {"FIELDS", "SIZE", "TYPE", "WIDTH"}) {
+    if (!values.count(required)) {
+      throw core::Error(path, std::string("PCD header has no ") + required + " line");
+    }
+  }
+  const auto& names = values["FIELDS"];
+  const auto& sizes = values["SIZE"];
+  const auto& types = values["TYPE"];
+  const std::size_t n_fields = names.size();
+  if (n_fields > detail::kMaxFields) {
+    throw core::Error(path, "PCD header has " + std::to_string(n_fields) +
+                                " FIELDS, expected at most " + std::to_string(detail::kMaxFields));
+  }
+  std::vector<std::string_view> counts =
+      values.count("COUNT") ? values["COUNT"] : std::vector<std::string_view>(n_fields, "1");
+  for (const auto& [key, list] :
+       {std::pair<const char*, const std::vector<std::string_view>*>{"SIZE", &sizes},
+        {"TYPE", &types},
+        {"COUNT", &counts}}) {
+    if (list->size() != n_fields) {
+      throw core::Error(path, std::string("PCD header has ") + std::to_string(n_fields) +
+                                  " FIELDS (" + join(names) + ") but " +
+                                  std::to_string(list->size()) + " " + key + " values (" +
+                                  join(*list) + "), expected one per field");
+    }
+  }
+  std::size_t offset = 0;
+  for (std::size_t k = 0; k < n_fields; ++k) {
+    RawField f;
+    f.name = std::string(names[k]);
+    const auto size = core::parse_integer(sizes[k], 1, 8);
+    if (!size || (*size != 1 && *size != 2 && *size != 4 && *size != 8)) {
+      throw core::Error(
+          path, "PCD field " + f.name + " has SIZE " + quote(sizes[k]) + ", expected 1, 2, 4 or 8");
+    }
+    f.size = static_cast<std::size_t>(*size);
+    if (types[k] == "F") {
+      f.kind = Kind::kFloat;
+      if (f.size != 4 && f.size != 8) {
+        throw core::Error(path, "PCD field " + f.name + " has TYPE F with SIZE " +
+                                    std::to_string(f.size) + ", expected SIZE 4 or 8 for floats");
+      }
+    } else if (types[k] == "U") {
+      f.kind = Kind::kUint;
+    } else if (types[k] == "I") {
+      f.kind = Kind::kInt;
+    } else {
+      throw core::Error(
+          path, "PCD field " + f.name + " has TYPE " + quote(types[k]) + ", expected F, U or I");
+    }
+    const auto count =
+        core::parse_integer(counts[k], 1, static_cast<long long>(detail::kMaxPointStep));
+    if (!count) {
+      throw core::Error(path, "PCD field " + f.name + " has COUNT " + quote(counts[k]) +
+                                  ", expected a whole number from 1 to " +
+                                  std::to_string(detail::kMaxPointStep));
+    }
+    f.count = static_cast<std::size_t>(*count);
+    f.offset = offset;
+    offset += f.size * f.count;
+    if (offset > detail::kMaxPointStep) {
+      throw core::Error(path, "PCD point is wider than " + std::to_string(detail::kMaxPointStep) +
+                                  " bytes (SIZE x COUNT summed over FIELDS)");
+    }
+    h.fields.push_back(std::move(f));
+  }
+  h.point_step = offset;
+
+  const auto whole = [&](const char* key, std::string_view text) {
+    const auto v = core::parse_integer(text, 0, 0xffffffffLL);
+    if (!v) {
+      throw core::Error(path, std::string("PCD header ") + key + " is " + quote(text) +
+                                  ", expected a whole number from 0 to 4294967295");
+    }
+    return static_cast<std::uint64_t>(*v);
+  };
+  const auto single = [&](const char* key) -> std::optional<std::string_view> {
+    if (!values.count(key)) return std::nullopt;
+    const auto& list = values[key];
+    if (list.size() != 1) {
+      throw core::Error(path, std::string("PCD header ") + key + " has " +
+                                  std::to_string(list.size()) + " values (" + join(list) +
+                                  "), expected one");
+    }
+    return list[0];
+  };
+  const std::uint64_t width = whole("WIDTH", *single("WIDTH"));
+  const std::uint64_t height = values.count("HEIGHT") ? whole("HEIGHT", *single("HEIGHT")) : 1;
+  h.points = width * height;
+  if (const auto p = single("POINTS")) {
+    const std::uint64_t points = whole("POINTS", *p);
+    if (points != h.points) {
+      throw core::Error(path, "PCD header says POINTS " + std::to_string(points) +
+                                  " but WIDTH x HEIGHT = " + std::to_string(width) + " x " +
+                                  std::to_string(height) + " = " + std::to_string(h.points) +
+                                  ", expected them equal");
+    }
+  }
+  if (h.points > 0xffffffffULL) {
+    throw core::Error(path, "PCD header WIDTH x HEIGHT = " + std::to_string(h.points) +
+                                " points, expected at most 4294967295");
+  }
+  if (values.count("VIEWPOINT")) {
+    const auto& vp = values["VIEWPOINT"];
+    bool ok = vp.size() == 7;
+    for (const auto& v : vp) ok = ok && core::parse_finite_double(v).has_value();
+    if (!ok) {
+      throw core::Error(path, "PCD header VIEWPOINT is '" + join(vp) +
+                                  "', expected 7 finite numbers (tx ty tz qw qx qy qz)");
+    }
+  }
+  const auto data = *single("DATA");
+  if (data == "ascii") {
+    h.data = DataFormat::kAscii;
+  } else if (data == "binary") {
+    h.data = DataFormat::kBinary;
+  } else if (data == "binary_compressed") {
+    h.data = DataFormat::kBinaryCompressed;
+  } else {
+    throw core::Error(path, "PCD header DATA is " + quote(data) +
+                                ", expected ascii, binary or binary_compressed");
+  }
+  return h;
+}
+
+std::uint32_t read_u32_le(const std::string& bytes, std::size_t at) {
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data() + at);
+  return static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1]) << 8 |
+         static_cast<std::uint32_t>(p[2]) << 16 | static_cast<std::uint32_t>(p[3]) << 24;
+}
+
+std::string points_times_step(const PcdHeader& h) {
+  return std::to_string(h.points) + " points x " + std::to_string(h.point_step) +
+         " bytes = " + std::to_string(h.points * h.point_step) + " bytes";
+}
+
+void decode_binary(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
+                   const std::string& path) {
+  const std::uint64_t need = h.points * h.point_step;
+  const std::uint64_t have = bytes.size() - h.data_offset;
+  if (need > have) {
+    throw core::Error(path, "DATA binary needs " + points_times_step(h) +
+                                " after the header, the file holds " + std::to_string(have) +
+                                " (truncated, or POINTS too large)");
+  }
+  raw.data = reinterpret_cast<const std::uint8_t*>(bytes.data() + h.data_offset);
+}
+
+void decode_compressed(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
+                       const std::string& path) {
+  const std::uint64_t need = h.points * h.point_step;
+  const std::uint64_t have = bytes.size() - h.data_offset;
+  if (have < 8) {
+    throw core::Error(
+        path, "DATA binary_compressed needs 8 bytes of sizes after the header, the file holds " +
+                  std::to_string(have));
+  }
+  const std::uint32_t compressed = read_u32_le(bytes, h.data_offset);
+  const std::uint32_t uncompressed = read_u32_le(bytes, h.data_offset + 4);
+  if (need == 0 && uncompressed == 0) return;  // an empty cloud
+  if (compressed == 0) {
+    throw core::Error(path, "binary_compressed PCD has compressed size 0, expected > 0 for " +
+                                std::to_string(h.points) + " points");
+  }
+  if (compressed > have - 8) {
+    throw core::Error(path, "binary_compressed PCD claims " + std::to_string(compressed) +
+                                " compressed bytes, the file holds " + std::to_string(have - 8) +
+                                " after the header (truncated or corrupt)");
+  }
+  if (uncompressed != need) {
+    throw core::Error(path, "binary_compressed PCD has uncompressed size " +
+                                std::to_string(uncompressed) + ", expected " +
+                                points_times_step(h) + " from the header");
+  }
+  if (uncompressed > kMaxLzfExpansion * compressed) {
+    throw core::Error(path, "binary_compressed PCD claims " + std::to_string(uncompressed) +
+                                " uncompressed bytes from " + std::to_string(compressed) +
+                                " compressed, expected at most " +
+                                std::to_string(kMaxLzfExpansion) +
+                                " times as many (LZF's largest expansion)");
+  }
+  if (uncompressed > detail::kMaxBodyBytes) {
+    throw core::Error(path, "binary_compressed PCD has uncompressed size " +
+                                std::to_string(uncompressed) + ", expected at most " +
+                                std::to_string(detail::kMaxBodyBytes));
+  }
+  std::vector<std::uint8_t> planar(uncompressed);
+  const unsigned int got =
+      pcl::lzfDecompress(bytes.data() + h.data_offset + 8, compressed, planar.data(), uncompressed);
+  if (got != uncompressed) {
+    throw core::Error(path,
+                      "binary_compressed PCD data decompresses to " +
+                          (got == 0 ? std::string("an error") : std::to_string(got) + " bytes") +
+                          ", expected " + std::to_string(uncompressed) + " (corrupt data)");
+  }
+  // The compressed body stores each field for all points, field after field; interleave.
+  raw.storage.resize(uncompressed);
+  std::size_t src = 0;
+  for (const auto& f : h.fields) {
+    const std::size_t width = f.size * f.count;
+    for (std::size_t i = 0; i < h.points; ++i) {
+      std::memcpy(raw.storage.data() + i * h.point_step + f.offset, planar.data() + src, width);
+      src += width;
+    }
+  }
+  raw.data = raw.storage.data();
+}
+
+void decode_ascii(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
+                  const std::string& path) {
+  std::size_t per_point = 0;
+  for (const auto& f : h.fields) per_point += f.count;
+  const std::uint64_t have = bytes.size() - h.data_offset;
+  // Each value takes at least one character and one separator.
+  if (h.points * per_point * 2 > have + 1) {
+    throw core::Error(path, "DATA ascii: POINTS " + std::to_string(h.points) + " with " +
+                                std::to_string(per_point) + " values each need at least " +
+                                std::to_string(h.points * per_point * 2) +
+                                " bytes, the file holds " + std::to_string(have) +
+                                " after the header");
+  }
+  raw.storage.assign(h.points * h.point_step, 0);
+  raw.data = raw.storage.data();
+  // Line numbers in messages count from the file's first line.
+  std::size_t line_no = 1;
+  for (std::size_t i = 0; i < h.data_offset; ++i) line_no += bytes[i] == '\n';
+  std::size_t pos = h.data_offset;
+  std::size_t point = 0;
+  for (; pos < bytes.size(); ++line_no) {
+    std::size_t eol = bytes.find('\n', pos);
+    if (eol == std::string::npos) eol = bytes.size();
+    std::string_view line(bytes.data() + pos, eol - pos);
+    pos = eol + 1;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const auto tokens = split(line);
+    if (tokens.empty()) continue;
+    if (point >= h.points) {
+      throw core::Error(path, "line " + std::to_string(line_no) +
+                                  " holds more points than POINTS " + std::to_string(h.points));
+    }
+    if (tokens.size() != per_point) {
+      throw core::Error(path, "line " + std::to_string(line_no) + " (point " +
+                                  std::to_string(point) + ") has " + std::to_string(tokens.size()) +
+                                  " values, expected " + std::to_string(per_point) +
+                                  " (FIELDS with their COUNT)");
+    }
+    std::uint8_t* record = raw.storage.data() + point * h.point_step;
+    std::size_t t = 0;
+    for (const auto& f : h.fields) {
+      for (std::size_t c = 0; c < f.count; ++c, ++t) {
+        if (!detail::parse_ascii_value(tokens[t], f.kind, f.size, record + f.offset + c * f.size)) {
+          throw core::Error(
+              path, "line " + std::to_string(line_no) + " (point " + std::to_string(point) +
+                        "), field " + f.name + ": " + quote(tokens[t]) + " is not a " +
+                        (f.kind == Kind::kFloat ? "number" : "whole number in range of its TYPE"));
+        }
+      }
+    }
+    ++point;
+  }
+  if (point != h.points) {
+    throw core::Error(path, "DATA ascii holds " + std::to_string(point) +
+                                " points, expected POINTS " + std::to_string(h.points));
   }
 }
 
 }  // namespace
 
 LoadedCloud load_pcd(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw core::Error(path, "point cloud file does not exist");
-  pcl::PCLPointCloud2 msg;
-  pcl::PCDReader reader;
-  if (reader.read(path, msg) < 0) {
-    throw core::Error(path, "cannot read as PCD (expected a PCD file with fields x y z)");
+  const std::string bytes = detail::read_whole_file(path, "point cloud");
+  const PcdHeader h = parse_header(bytes, path);
+  RawCloud raw;
+  raw.fields = h.fields;
+  raw.point_step = h.point_step;
+  raw.points = static_cast<std::size_t>(h.points);
+  switch (h.data) {
+    case DataFormat::kAscii:
+      decode_ascii(bytes, h, raw, path);
+      break;
+    case DataFormat::kBinary:
+      decode_binary(bytes, h, raw, path);
+      break;
+    case DataFormat::kBinaryCompressed:
+      decode_compressed(bytes, h, raw, path);
+      break;
   }
-  const auto* fx = find_field(msg, {"x"});
-  const auto* fy = find_field(msg, {"y"});
-  const auto* fz = find_field(msg, {"z"});
-  if (!fx || !fy || !fz) {
-    std::string fields;
-    for (const auto& f : msg.fields) fields += (fields.empty() ? "" : " ") + f.name;
-    throw core::Error(path, "PCD has fields '" + fields + "', expected at least x y z");
-  }
-  const auto* fi = find_field(msg, {"intensity", "i", "reflectivity"});
-  const auto* fr = find_field(msg, {"ring", "line", "laser_id"});
-  const auto* ft = find_field(msg, {"t", "time", "timestamp"});
-
-  LoadedCloud out;
-  out.has_intensity = fi != nullptr;
-  out.has_ring = fr != nullptr;
-  out.has_t = ft != nullptr;
-  out.cloud.reset(new Cloud);
-  const std::size_t n = static_cast<std::size_t>(msg.width) * msg.height;
-  out.cloud->reserve(n);
-  // Other tools store absolute times ("time", "timestamp"); ours is relative to the
-  // cloud's first point, so subtract the earliest one (in double, before narrowing).
-  double t0 = 0.0;
-  if (ft && ft->name != "t" && n > 0) {
-    t0 = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < n; ++i) {
-      const double v = read_value(msg.data.data() + i * msg.point_step + ft->offset, *ft);
-      if (std::isfinite(v)) t0 = std::min(t0, v);
-    }
-    if (!std::isfinite(t0)) t0 = 0.0;
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint8_t* base = msg.data.data() + i * msg.point_step;
-    PointXYZIRT p;
-    p.x = static_cast<float>(read_value(base + fx->offset, *fx));
-    p.y = static_cast<float>(read_value(base + fy->offset, *fy));
-    p.z = static_cast<float>(read_value(base + fz->offset, *fz));
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
-    if (fi) p.intensity = static_cast<float>(read_value(base + fi->offset, *fi));
-    if (fr) p.ring = static_cast<std::uint16_t>(read_value(base + fr->offset, *fr));
-    if (ft) p.t = static_cast<float>(read_value(base + ft->offset, *ft) - t0);
-    out.cloud->push_back(p);
-  }
-  out.cloud->width = static_cast<std::uint32_t>(out.cloud->size());
-  out.cloud->height = 1;
-  out.cloud->is_dense = true;
-  return out;
+  return detail::to_loaded_cloud(raw, path, "PCD");
 }
 
 void save_pcd(const std::string& path, const Cloud& cloud, PcdFormat format) {

@@ -1,7 +1,9 @@
 #pragma once
 /// \file
-/// Reading and writing PCD files (ASCII, binary, binary_compressed) through PCL, with
-/// errors that name the file and what was expected. Files may carry any subset of the
+/// Reading and writing PCD files (ASCII, binary, binary_compressed), with errors that name
+/// the file and what was expected. Reading parses and checks the file here (LZF through
+/// PCL's decoder, after the sizes are checked); writing goes through PCL. For PLY files and
+/// for picking the reader by extension see cloud_io.hpp. Files may carry any subset of the
 /// optional fields; which ones were present is reported so callers can recover the rest
 /// (e.g. scan lines from geometry when `ring` is absent).
 #include <string>
@@ -19,8 +21,18 @@ struct LoadedCloud {
 
 /// Loads a PCD. Requires fields x y z; intensity (or "i"), ring and t (or "time",
 /// "timestamp") are optional and zero when absent. Points with non-finite coordinates are
-/// dropped (PCL writes NaN for missing returns in organised clouds). Throws
-/// rgbdt::core::Error naming the file when it is missing, unreadable or lacks x y z.
+/// dropped (PCL writes NaN for missing returns in organised clouds).
+///
+/// The header is parsed and checked before any data is read: FIELDS/SIZE/TYPE/COUNT of one
+/// length, sizes 1/2/4/8 matching the types, WIDTH x HEIGHT == POINTS, and the data size
+/// the header implies present in the file (for binary_compressed: the stored sizes within
+/// the file, the uncompressed size equal to POINTS x point size and at most 88 times the
+/// compressed size, LZF's largest expansion). Values are checked too: `t` finite and within
+/// 3600 s of the earliest point (absolute "time"/"timestamp" fields are made relative
+/// first), `ring` a whole number in 0..1023, intensity finite.
+///
+/// Throws rgbdt::core::Error naming the file, and the point or header value at fault, when
+/// it is missing, unreadable, malformed, truncated or lacks x y z.
 LoadedCloud load_pcd(const std::string& path);
 
 enum class PcdFormat { kAscii, kBinary, kBinaryCompressed };
