@@ -15,6 +15,7 @@
 #include <optional>
 #include <sstream>
 
+#include "rgbdt/cloud/cloud_io.hpp"
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
@@ -72,7 +73,7 @@ error_model::GrayImage load_gray(const std::string& path) {
 }
 
 std::vector<Eigen::Vector3d> load_points(const std::string& path) {
-  const cloud::LoadedCloud loaded = cloud::load_pcd(path);
+  const cloud::LoadedCloud loaded = cloud::load_cloud(path);
   std::vector<Eigen::Vector3d> points;
   points.reserve(loaded.cloud->size());
   for (const auto& p : *loaded.cloud) points.emplace_back(p.x, p.y, p.z);

@@ -44,10 +44,12 @@
 #include <sstream>
 #include <string_view>
 
+#include "rgbdt/cloud/cloud_io.hpp"
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/image_header.hpp"
 #include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/core/output.hpp"
@@ -129,7 +131,7 @@ struct TiltSource {
 
   cloud::LoadedCloud load() const {
     if (cloud) return cloud::LoadedCloud{cloud, true, true, true};
-    return cloud::load_pcd(file);
+    return cloud::load_cloud(file);
   }
 };
 
@@ -276,51 +278,6 @@ std::string json_string(const std::string& text) {
   return out + "\"";
 }
 
-/// What a PNG's IHDR chunk says (bytes 16..25 of the file).
-struct PngHeader {
-  std::uint32_t width = 0, height = 0;
-  int bit_depth = 0;
-  int color_type = 0;  ///< 0 grey, 2 RGB, 3 palette, 4 grey + alpha, 6 RGBA
-};
-
-/// Reads only the PNG signature and IHDR chunk of `path`; empty with the reason in `why`
-/// when the file is not a PNG. (A local reader: core's image header reader replaces it
-/// once it exists.)
-std::optional<PngHeader> read_png_header(const std::string& path, std::string* why) {
-  std::ifstream in(path, std::ios::binary);
-  unsigned char b[26] = {};
-  if (!in || !in.read(reinterpret_cast<char*>(b), sizeof b)) {
-    *why = "cannot read a PNG header (26 bytes)";
-    return std::nullopt;
-  }
-  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (std::memcmp(b, kSignature, 8) != 0 || std::memcmp(b + 12, "IHDR", 4) != 0) {
-    *why = "is not a PNG (no PNG signature and IHDR chunk)";
-    return std::nullopt;
-  }
-  auto be32 = [&](int at) {
-    return (std::uint32_t{b[at]} << 24) | (std::uint32_t{b[at + 1]} << 16) | (std::uint32_t{b[at + 2]} << 8) |
-           std::uint32_t{b[at + 3]};
-  };
-  PngHeader h;
-  h.width = be32(16);
-  h.height = be32(20);
-  h.bit_depth = b[24];
-  h.color_type = b[25];
-  return h;
-}
-
-std::string png_kind(const PngHeader& h) {
-  const char* type = h.color_type == 0   ? "grey"
-                     : h.color_type == 2 ? "RGB"
-                     : h.color_type == 3 ? "palette"
-                     : h.color_type == 4 ? "grey+alpha"
-                     : h.color_type == 6 ? "RGBA"
-                                         : "unknown colour type";
-  return std::to_string(h.width) + "x" + std::to_string(h.height) + " px " + std::to_string(h.bit_depth) + "-bit " +
-         type;
-}
-
 /// Problems found before the long work, listed together (a file can be named many times,
 /// e.g. 500 frames of another size: the first few per kind are listed, then a count).
 class Preflight {
@@ -359,7 +316,8 @@ class Preflight {
 
 /// Checks a camera's frame files against its camera_info: each exists, is a PNG of the
 /// camera's size, and a thermal frame holds 16-bit grey counts (what the radiometry maps).
-void check_frames(const std::string& camera, const core::CameraIntrinsics& intrinsics, bool thermal,
+void check_frames(const std::string& camera, const core::CameraIntrinsics& intrinsics,
+                  const std::string& camera_info_path, bool thermal,
                   const std::vector<core::TimedFile>& frames, Preflight* preflight) {
   for (const core::TimedFile& f : frames) {
     std::error_code ec;
@@ -374,24 +332,24 @@ void check_frames(const std::string& camera, const core::CameraIntrinsics& intri
                      "camera '" + camera + "' frames that are not files");
       continue;
     }
-    std::string why;
-    const std::optional<PngHeader> h = read_png_header(f.file, &why);
-    if (!h) {
-      preflight->add(f.file, why + ", expected a PNG frame of camera '" + camera + "'",
-                     "camera '" + camera + "' frames that are not PNGs");
+    core::ImageHeader h;
+    try {
+      h = core::read_image_header(f.file);
+    } catch (const core::Error& e) {
+      preflight->add_error(f.file, "camera '" + camera + "' frame", e);
       continue;
     }
-    if (static_cast<long>(h->width) != intrinsics.width || static_cast<long>(h->height) != intrinsics.height) {
-      preflight->add(f.file, "is " + png_kind(*h) + ", expected camera '" + camera + "''s " +
-                                 std::to_string(intrinsics.width) + "x" + std::to_string(intrinsics.height) +
-                                 " px (its camera_info)",
-                     "camera '" + camera + "' frames of another size");
-      continue;
+    // 8-bit RGB or grey frames; thermal frames hold 16-bit grey raw counts (what the
+    // radiometry maps to kelvin).
+    std::string mismatch =
+        core::image_mismatch(h, intrinsics.width, intrinsics.height, f.file, camera_info_path, thermal ? 16 : 8);
+    if (mismatch.empty() && thermal && h.channels != 1) {
+      mismatch = f.file + ": has " + std::to_string(h.channels) + " channels, expected 1 (16-bit grey raw counts of " +
+                 "thermal camera '" + camera + "')";
     }
-    if (thermal && !(h->bit_depth == 16 && h->color_type == 0)) {
-      preflight->add(f.file, "is " + png_kind(*h) + ", expected 16-bit grey raw counts (thermal camera '" + camera +
-                                 "': its radiometry maps 16-bit counts to kelvin)",
-                     "camera '" + camera + "' frames that are not 16-bit grey");
+    if (!mismatch.empty()) {
+      if (mismatch.rfind(f.file + ": ", 0) == 0) mismatch = mismatch.substr(f.file.size() + 2);
+      preflight->add(f.file, mismatch + " (camera '" + camera + "')", "camera '" + camera + "' frames that do not match");
     }
   }
 }
@@ -523,7 +481,7 @@ int main(int argc, char** argv) {
           preflight.add_error(entry.frames, "camera '" + name + "' frame index", e);
         }
       }
-      if (intrinsics) check_frames(name, *intrinsics, thermal, frames, &preflight);
+      if (intrinsics) check_frames(name, *intrinsics, entry.intrinsics, thermal, frames, &preflight);
       if (thermal) {
         try {
           const thermal_camera::Radiometry radiometry = thermal_radiometry(entry, session.directory, name);

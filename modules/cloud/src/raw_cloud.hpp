@@ -41,9 +41,9 @@ constexpr std::size_t kMaxPointStep = 64 * 1024;
 constexpr std::size_t kMaxFields = 256;
 constexpr std::uint64_t kMaxBodyBytes = std::uint64_t{1} << 30;
 
-/// Largest |t| accepted, in seconds from the cloud's first point, and the largest ring.
+/// Largest |t| accepted, in seconds from the cloud's first point (kMaxRing, the largest
+/// ring, is in rgbdt/cloud/point_types.hpp).
 constexpr double kMaxRelativeTime = 3600.0;
-constexpr int kMaxRing = 1023;
 
 /// The whole file; throws naming it when it is missing, not a regular file or unreadable.
 std::string read_whole_file(const std::string& path, const char* what);

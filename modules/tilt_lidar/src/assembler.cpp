@@ -333,7 +333,9 @@ void Assembler::assemble_scan(const Scan& scan, std::int64_t seq, std::vector<Ti
       ++b->ring;
       b->ring_seq = seq;
     }
-    p.ring = static_cast<std::uint16_t>(std::min(b->ring, 65535));
+    // Scans past kMaxRing in one tilt (minutes without a reversal) share the last index, so
+    // the cloud stays readable by load_pcd.
+    p.ring = static_cast<std::uint16_t>(std::min(b->ring, cloud::kMaxRing));
     p.t = static_cast<float>(tb - b->t0_s);
     b->last_time_s = tb;
     b->points.push_back(p);

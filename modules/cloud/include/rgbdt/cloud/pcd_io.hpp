@@ -29,7 +29,7 @@ struct LoadedCloud {
 /// the file, the uncompressed size equal to POINTS x point size and at most 88 times the
 /// compressed size, LZF's largest expansion). Values are checked too: `t` finite and within
 /// 3600 s of the earliest point (absolute "time"/"timestamp" fields are made relative
-/// first), `ring` a whole number in 0..1023, intensity finite.
+/// first), `ring` a whole number in 0..kMaxRing, intensity finite.
 ///
 /// Throws rgbdt::core::Error naming the file, and the point or header value at fault, when
 /// it is missing, unreadable, malformed, truncated or lacks x y z.

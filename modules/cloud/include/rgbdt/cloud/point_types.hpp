@@ -13,6 +13,11 @@
 
 namespace rgbdt::cloud {
 
+/// The largest scan-line index a cloud may carry. Spinning LIDARs have at most 128 rings; an
+/// assembled tilt has one ring per 2D scan, so 16383 covers a single tilt of 6.8 minutes at
+/// 40 scans/s. Larger values (65535 is the "no ring" sentinel of some drivers) are corrupt.
+constexpr int kMaxRing = 16383;
+
 struct EIGEN_ALIGN16 PointXYZIRT {
   PCL_ADD_POINT4D;
   float intensity = 0.0f;
