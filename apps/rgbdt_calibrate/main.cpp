@@ -114,10 +114,7 @@ int main(int argc, char** argv) {
       "stderr); 130 interrupted (no report.md)."};
   std::string session_dir, out_dir, camera_choice = "all", method_name = "edge", initial_path;
   bool verbose = false;
-  // The LIDAR seeds by default: they find the board on every simulated session. Image
-  // seeds are opt-in: on the 3-view simulated session a seeded thermal detection leads to an
-  // estimate that fails its checks, where the automatic one does not.
-  std::string seeds = "lidar";
+  std::string seeds = "all";
   app.add_option("SESSION_DIR", session_dir, "calibration session folder (with session.yaml)")->required();
   app.add_option("--out", out_dir, "output folder (created)")->required();
   app.add_option("--camera", camera_choice, "camera to calibrate: a camera name of the session or 'all'")
