@@ -81,6 +81,23 @@ std::string write_session_without_target(const std::string& name) {
   return dir.string();
 }
 
+std::string read_text(const std::string& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// A simulated 3-view session (rgb and thermal, one-hole board), in its own folder per test.
+std::string simulate_session(const std::string& name) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / name;
+  fs::remove_all(dir);
+  const std::string cmd =
+      bin_dir() + "/rgbdt_sim calibration --views 3 --out " + dir.string() + " > " + dir.string() + ".sim.log 2>&1";
+  EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  return dir.string();
+}
+
 TEST(RgbdtCalibrate, HelpExplainsItselfAndExitsZero) {
   const AppRun r = run_app("--help");
   EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -101,6 +118,120 @@ TEST(RgbdtCalibrate, MissingSessionNamesTheFile) {
   const AppRun r = run_app("/nonexistent/session --out " + (fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "rgbdt_calibrate_none").string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("/nonexistent/session"), std::string::npos) << r.output;
+}
+
+// The default seeds (a LIDAR seed on the board beside the hole, behind it a larger cloth)
+// find the board: the seeded plane is cut to the part that holds the seed.
+TEST(RgbdtCalibrate, SimulatedSessionCalibratesWithTheDefaultSeeds) {
+  const std::string session = simulate_session("rgbdt_calibrate_default_seeds");
+  const std::string out = session + "/out";
+  const AppRun r = run_app(session + " --out " + out);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_thermal.yaml")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/report.md")) << r.output;
+  EXPECT_EQ(r.output.find("not found"), std::string::npos) << r.output;
+}
+
+// Seeds are hints: a LIDAR seed far from any surface falls back to the automatic
+// detection, which finds the board, and the report says so.
+TEST(RgbdtCalibrate, AFailedSeedFallsBackToTheAutomaticDetectionAndSaysSo) {
+  const std::string dir = simulate_session("rgbdt_calibrate_bad_seed");
+  rgbdt::core::CalibrationSession s = rgbdt::core::read_calibration_session(dir);
+  for (auto& v : s.views) v.lidar_seed = Eigen::Vector3d(0.0, 0.0, 40.0);
+  rgbdt::core::write_calibration_session(dir + "/session.yaml", s);
+  const std::string out = dir + "/out";
+  const AppRun r = run_app(dir + " --out " + out + " --camera rgb");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  const std::string report = read_text(out + "/report.md");
+  EXPECT_NE(report.find("view 0: LIDAR seed: seeded detection failed (no points near the seed"), std::string::npos)
+      << report;
+  EXPECT_NE(report.find("the automatic detection found the target"), std::string::npos) << report;
+}
+
+// One camera that cannot be calibrated (an initial guess that points it away from the
+// board) is reported by name with its reason; the other camera is still written, and
+// report.md marks the run complete. Nothing is written for the failed camera.
+TEST(RgbdtCalibrate, AFailingCameraIsReportedAndTheOthersAreWritten) {
+  const std::string session = simulate_session("rgbdt_calibrate_one_fails");
+  const std::string out = session + "/out";
+  {
+    std::ofstream f(session + "/away.yaml");
+    f << "parent_frame: thermal\nchild_frame: lidar\ntranslation: [0, 0, 0]\n"
+         "rotation_quaternion: [0, 1, 0, 0]\n";
+  }
+  const AppRun r = run_app(session + " --out " + out + " --seeds none --initial " + session + "/away.yaml");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/overlay_rgb_000.png")) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/extrinsics_thermal.yaml")) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/extrinsics_thermal_rgb.yaml")) << r.output;
+  EXPECT_NE(r.output.find("error: camera thermal: not calibrated: "), std::string::npos) << r.output;
+  ASSERT_TRUE(fs::exists(out + "/report.md")) << r.output;
+  const std::string report = read_text(out + "/report.md");
+  EXPECT_NE(report.find("**FAILED for 1 of 2 camera(s)**"), std::string::npos) << report;
+  EXPECT_NE(report.find("- **thermal**: "), std::string::npos) << report;
+}
+
+// A camera name far longer than any fixed buffer: the overlays carry the whole name.
+TEST(RgbdtCalibrate, ALongCameraNameGivesWholeOverlayNames) {
+  const std::string dir = simulate_session("rgbdt_calibrate_long_name");
+  rgbdt::core::CalibrationSession s = rgbdt::core::read_calibration_session(dir);
+  const std::string name(100, 'c');
+  s.cameras[name] = s.cameras.at("rgb");
+  s.cameras.erase("rgb");
+  for (auto& v : s.views) {
+    v.images[name] = v.images.at("rgb");
+    v.images.erase("rgb");
+    v.image_seeds.clear();
+  }
+  rgbdt::core::write_calibration_session(dir + "/session.yaml", s);
+  const std::string out = dir + "/out";
+  const AppRun r = run_app(dir + " --out " + out + " --camera " + name);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/overlay_" + name + "_000.png")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_" + name + ".yaml")) << r.output;
+}
+
+// Every missing or mismatched file is listed at once, before any detection runs.
+TEST(RgbdtCalibrate, PreflightListsEveryProblemBeforeAnyDetection) {
+  const std::string dir = simulate_session("rgbdt_calibrate_preflight");
+  fs::remove(dir + "/clouds/001.pcd");
+  fs::remove(dir + "/thermal/002.png");
+  cv::imwrite(dir + "/rgb/000.png", cv::Mat(482, 644, CV_8U, cv::Scalar(90)));  // half size
+  { std::ofstream(dir + "/rgb/002.png") << "not a png"; }
+  const std::string out = dir + "/out";
+  const AppRun r = run_app(dir + " --out " + out);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_EQ(r.output.find("detecting the target"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(dir + "/clouds/001.pcd: does not exist"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(dir + "/thermal/002.png: does not exist"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(dir + "/rgb/000.png: image size 644x482"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("expected 1288x964"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(dir + "/rgb/002.png: is not a PNG"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/report.md"));
+}
+
+// Ctrl-C during the detection: the app stops at the next view, exits 130 and leaves no
+// report.md, neither this run's nor the stale one of an earlier run in the same folder.
+TEST(RgbdtCalibrate, InterruptStopsWritesNoReportAndExits130) {
+  const std::string dir = simulate_session("rgbdt_calibrate_interrupt");
+  const std::string out = dir + "/out";
+  fs::create_directories(out);
+  { std::ofstream(out + "/report.md") << "# report of an earlier run\n"; }
+  { std::ofstream(out + "/extrinsics_rgb.yaml") << "stale\n"; }
+  // SIGINT once the app says it is detecting (its handler is installed by then).
+  const std::string log = dir + ".run.log";
+  const std::string cmd = "bash -c '" + bin_dir() + "/rgbdt_calibrate " + dir + " --out " + out + " > " + log +
+                          " 2>&1 & pid=$!; for i in $(seq 600); do grep -q detecting " + log +
+                          " && break; sleep 0.05; done; kill -INT $pid; wait $pid'";
+  const int status = std::system(cmd.c_str());
+  const std::string output = read_text(log);
+  EXPECT_EQ(WEXITSTATUS(status), 130) << output;
+  EXPECT_FALSE(fs::exists(out + "/report.md")) << output;
+  EXPECT_FALSE(fs::exists(out + "/extrinsics_rgb.yaml")) << output;
+  EXPECT_NE(output.find("interrupted"), std::string::npos) << output;
 }
 
 }  // namespace

@@ -41,29 +41,62 @@ extrinsics::TargetView make_target_view(const calib_targets::LidarTargetDetectio
 
 }  // namespace
 
-std::map<std::string, CameraViews> detect_session_views(
-    const core::CalibrationSession& session, const std::map<std::string, core::PinholeCamera>& cameras,
-    bool lidar_seeds, bool image_seeds, const Progress& progress) {
-  std::map<std::string, CameraViews> out;
+SessionDetections detect_session_views(const core::CalibrationSession& session,
+                                       const std::map<std::string, core::PinholeCamera>& cameras,
+                                       bool lidar_seeds, bool image_seeds, const Progress& progress,
+                                       const StopRequested& stop) {
+  SessionDetections result;
+  std::map<std::string, CameraViews>& out = result.cameras;
   for (const auto& [name, camera] : cameras) out[name].camera_name = name;
   const size_t n = session.views.size();
   for (size_t i = 0; i < n; ++i) {
+    if (stop && stop()) {
+      result.stopped = true;
+      return result;
+    }
     const core::CalibrationView& view = session.views[i];
     const std::string label = "view " + std::to_string(i);
-    const cloud::LoadedCloud loaded = cloud::load_pcd(view.cloud);
-    const calib_targets::LidarTargetDetection lidar = calib_targets::detect_target_in_cloud(
-        *loaded.cloud, loaded.has_ring, session.target, {},
-        lidar_seeds ? view.lidar_seed : std::optional<Eigen::Vector3d>{});
+    calib_targets::LidarTargetDetection lidar;
+    std::string lidar_note;
+    std::size_t cloud_points = 0;
+    try {
+      const cloud::LoadedCloud loaded = cloud::load_pcd(view.cloud);
+      cloud_points = loaded.cloud->size();
+      const auto detect = [&](std::optional<Eigen::Vector3d> seed) {
+        return calib_targets::detect_target_in_cloud(*loaded.cloud, loaded.has_ring, session.target, {}, seed);
+      };
+      if (lidar_seeds && view.lidar_seed) {
+        lidar = detect(view.lidar_seed);
+        if (!lidar.ok) {
+          const std::string seeded = lidar.reason;
+          lidar = detect({});
+          if (lidar.ok) {
+            lidar_note = label + ": LIDAR seed: seeded detection failed (" + seeded +
+                         "); the automatic detection found the target";
+          } else {
+            lidar.reason = "seeded detection: " + seeded + "; automatic detection: " + lidar.reason;
+            lidar_note = label + ": LIDAR seed: " + lidar.reason;
+          }
+        }
+      } else {
+        lidar = detect({});
+      }
+    } catch (const std::exception& e) {
+      lidar = {};
+      lidar.reason = std::string("cannot read the cloud: ") + e.what();
+    }
     {
       std::ostringstream os;
-      os << label << "/" << n << ": LIDAR " << loaded.cloud->size() << " points: ";
+      os << label << "/" << n << ": LIDAR " << cloud_points << " points: ";
       if (lidar.ok) os << lidar.holes.size() << " hole(s) found";
       else os << "target not found (" << lidar.reason << ")";
+      if (lidar.ok && !lidar_note.empty()) os << " (seed failed, automatic detection used)";
       progress(os.str());
     }
     for (const auto& [name, camera] : cameras) {
       CameraViews& cv = out[name];
       if (lidar.ok) ++cv.lidar_found;
+      if (!lidar_note.empty()) cv.seed_notes.push_back(lidar_note);
       const auto image_it = view.images.find(name);
       if (image_it == view.images.end()) {
         cv.skipped.push_back(label + ": no " + name + " image in session.yaml");
@@ -71,18 +104,35 @@ std::map<std::string, CameraViews> detect_session_views(
       }
       const cv::Mat image = cv::imread(image_it->second, cv::IMREAD_UNCHANGED);
       if (image.empty()) {
-        throw core::Error(image_it->second, "cannot read the image (expected an 8- or 16-bit PNG)");
+        cv.skipped.push_back(label + ": " + image_it->second +
+                             ": cannot read the image (expected an 8- or 16-bit PNG)");
+        progress("  " + name + ": cannot read " + image_it->second);
+        continue;
       }
       std::optional<Eigen::Vector2d> seed;
       if (const auto s = view.image_seeds.find(name); image_seeds && s != view.image_seeds.end())
         seed = s->second;
-      const calib_targets::ImageTargetDetection det =
+      calib_targets::ImageTargetDetection det =
           calib_targets::detect_target_in_image(image, session.target, camera, {}, seed);
+      std::string image_note;
+      if (!det.ok && seed) {
+        const std::string seeded = det.reason;
+        det = calib_targets::detect_target_in_image(image, session.target, camera, {}, std::nullopt);
+        if (det.ok) {
+          image_note = label + ": " + name + " seed: seeded detection failed (" + seeded +
+                       "); the automatic detection found the target";
+        } else {
+          det.reason = "seeded detection: " + seeded + "; automatic detection: " + det.reason;
+          image_note = label + ": " + name + " seed: " + det.reason;
+        }
+        cv.seed_notes.push_back(image_note);
+      }
       std::ostringstream os;
       os << "  " << name << ": ";
       if (det.ok) {
         ++cv.image_found;
         os << det.holes.size() << " hole(s) found";
+        if (!image_note.empty()) os << " (seed failed, automatic detection used)";
       } else {
         os << "target not found (" << det.reason << ")";
       }
@@ -96,8 +146,9 @@ std::map<std::string, CameraViews> detect_session_views(
       cv.session_index.push_back(static_cast<int>(i));
       cv.image_paths.push_back(image_it->second);
     }
+    result.views_done = i + 1;
   }
-  return out;
+  return result;
 }
 
 }  // namespace rgbdt::calibrate

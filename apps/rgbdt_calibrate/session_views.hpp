@@ -19,17 +19,30 @@ struct CameraViews {
   std::vector<int> session_index;             ///< index of each view in the session
   std::vector<std::string> image_paths;       ///< image of each view
   std::vector<std::string> skipped;           ///< "view i: reason" for every other view
+  /// "view i: ..." for every seed that did not lead to the target (the automatic detector
+  /// was used instead, or also failed).
+  std::vector<std::string> seed_notes;
   int lidar_found = 0, image_found = 0;
 };
 
-using Progress = std::function<void(const std::string&)>;
+struct SessionDetections {
+  std::map<std::string, CameraViews> cameras;
+  std::size_t views_done = 0;  ///< views fully processed (all of them unless stopped)
+  bool stopped = false;        ///< `stop` returned true before the last view
+};
 
-/// Detects the target in every view of the session, for each requested camera (the LIDAR
-/// and/or image detections seeded by session.yaml's seeds when the flags say so). The LIDAR detection of a view is shared
-/// by the cameras. Throws rgbdt::core::Error naming the file when a cloud or image cannot
-/// be read.
-std::map<std::string, CameraViews> detect_session_views(
-    const core::CalibrationSession& session, const std::map<std::string, core::PinholeCamera>& cameras,
-    bool lidar_seeds, bool image_seeds, const Progress& progress);
+using Progress = std::function<void(const std::string&)>;
+using StopRequested = std::function<bool()>;
+
+/// Detects the target in every view of the session, for each requested camera. Seeds of
+/// session.yaml (used when the flags say so) are hints: when a seeded detection fails, the
+/// automatic detector runs and the fallback is noted; when both fail, both reasons are
+/// kept. The LIDAR detection of a view is shared by the cameras. A cloud or image that
+/// cannot be read skips the view with the reason (naming the file). `stop` is polled
+/// before each view; when it returns true the detection ends early with `stopped` set.
+SessionDetections detect_session_views(const core::CalibrationSession& session,
+                                       const std::map<std::string, core::PinholeCamera>& cameras,
+                                       bool lidar_seeds, bool image_seeds, const Progress& progress,
+                                       const StopRequested& stop = {});
 
 }  // namespace rgbdt::calibrate

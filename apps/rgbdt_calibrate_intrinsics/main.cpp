@@ -3,10 +3,13 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <map>
+#include <sstream>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -14,6 +17,9 @@
 #include "rgbdt/calib_targets/image_target.hpp"
 #include "rgbdt/calib_targets/intrinsics.hpp"
 #include "rgbdt/core/camera_info.hpp"
+#include "rgbdt/core/error.hpp"
+#include "rgbdt/core/interrupt.hpp"
+#include "rgbdt/core/output.hpp"
 
 namespace fs = std::filesystem;
 namespace ct = rgbdt::calib_targets;
@@ -27,11 +33,40 @@ cv::Mat to_bgr(const cv::Mat& image) {
   return bgr;
 }
 
+/// Writes an image through a temporary file; throws naming the file when it fails.
+void write_png(const fs::path& path, const cv::Mat& image) {
+  rgbdt::core::TempOutput out(path.string());
+  if (!cv::imwrite(out.temp_path(), image)) throw rgbdt::core::Error(path.string(), "cannot write the PNG");
+  out.commit();
+}
+
+/// Why the estimate must not be used, or an empty string when it passes every check.
+std::string verdict_problem(const ct::IntrinsicsResult& r, cv::Size size, double max_rms_px) {
+  std::ostringstream os;
+  const auto& k = r.intrinsics;
+  bool finite = std::isfinite(r.rms_px);
+  for (double p : r.parameters) finite = finite && std::isfinite(p);
+  if (!finite) return "the estimate is not finite";
+  if (!(k.fx > 0 && k.fy > 0)) {
+    os << "focal lengths fx = " << k.fx << ", fy = " << k.fy << " px, expected > 0";
+  } else if (!(k.cx >= 0 && k.cx <= size.width && k.cy >= 0 && k.cy <= size.height)) {
+    os << "principal point (" << k.cx << ", " << k.cy << ") px outside the " << size.width << "x" << size.height
+       << " image";
+  } else if (r.rms_px > max_rms_px) {
+    os << "RMS reprojection error " << r.rms_px << " px above --max-rms " << max_rms_px << " px";
+  } else if (const std::string why = k.validate(); !why.empty()) {
+    os << why;
+  }
+  return os.str();
+}
+
 void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std::vector<cv::Mat>& images,
-                  const std::vector<ct::PatternDetection>& det, const std::string& baseline) {
+                  const std::vector<ct::PatternDetection>& det, const std::string& baseline,
+                  const std::vector<std::string>& skipped, const std::string& verdict) {
   fs::create_directories(dir / "views");
-  std::ofstream md(dir / "report.md");
+  std::ostringstream md;
   md << "# Intrinsic calibration\n\n";
+  if (!verdict.empty()) md << "**FAILED: " << verdict << ". The camera_info was not written.**\n\n";
   md << "- model: " << rgbdt::core::to_string(r.intrinsics.model) << ", estimated terms: " << r.distortion_terms << "\n";
   md << "- RMS reprojection error: " << r.rms_px << " px\n";
   md << "- coverage (8x8 grid cells with points): " << r.coverage * 100.0 << " %\n";
@@ -39,6 +74,10 @@ void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std:
   for (const auto& v : r.views) used += v.used ? 1 : 0;
   md << "- views used: " << used << " of " << r.views.size() << "\n";
   if (!baseline.empty()) md << "- baseline (plain OpenCV): " << baseline << "\n";
+  if (!skipped.empty()) {
+    md << "\n## Images not used\n\n";
+    for (const auto& s : skipped) md << "- " << s << "\n";
+  }
   md << "\n## Parameters (1 sigma)\n\n| parameter | value | std dev |\n|---|---|---|\n";
   for (std::size_t k = 0; k < r.parameters.size(); ++k) {
     md << "| " << r.parameter_names[k] << " | " << r.parameters[k] << " | "
@@ -49,7 +88,7 @@ void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std:
     for (const auto& c : r.candidates) md << "| " << c.terms << " | " << c.heldout_rms_px << " | " << c.train_rms_px << " |\n";
   }
   md << "\n## Views\n\n| view | used | RMS [px] | detector / reason |\n|---|---|---|---|\n";
-  std::ofstream csv(dir / "per_view_errors.csv");
+  std::ostringstream csv;
   csv << "view,used,rms_px,reason\n";
   cv::Mat coverage = images.empty() ? cv::Mat() : to_bgr(images[0]) * 0.4;
   cv::Mat residuals(600, 600, CV_8UC3, cv::Scalar(255, 255, 255));
@@ -65,7 +104,7 @@ void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std:
     cv::Mat vis = to_bgr(images[v]);
     cv::drawChessboardCorners(vis, cv::Size(0, 0), det[v].points, false);
     for (const auto& p : det[v].points) cv::circle(vis, p, 3, view.used ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 1, cv::LINE_AA);
-    cv::imwrite((dir / "views" / (fs::path(view.name).stem().string() + "_corners.png")).string(), vis);
+    write_png(dir / "views" / (fs::path(view.name).stem().string() + "_corners.png"), vis);
     if (!view.used) continue;
     for (std::size_t k = 0; k < view.points.size(); ++k) {
       cv::circle(coverage, view.points[k], 3, {0, 255, 0}, -1);
@@ -74,9 +113,12 @@ void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std:
     }
   }
   cv::putText(residuals, "residuals: 100 px per px, circle = 1 px", {10, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0});
-  if (!coverage.empty()) cv::imwrite((dir / "coverage.png").string(), coverage);
-  cv::imwrite((dir / "residuals.png").string(), residuals);
+  if (!coverage.empty()) write_png(dir / "coverage.png", coverage);
+  write_png(dir / "residuals.png", residuals);
+  rgbdt::core::write_file_atomic((dir / "per_view_errors.csv").string(), csv.str());
   md << "\nImages: `coverage.png`, `residuals.png`, `views/*_corners.png`; per-view errors in `per_view_errors.csv`.\n";
+  // Last: report.md marks a complete report.
+  rgbdt::core::write_file_atomic((dir / "report.md").string(), md.str());
 }
 
 }  // namespace
@@ -87,6 +129,10 @@ int main(int argc, char** argv) {
       "16-bit and low-contrast thermal images are normalised by percentiles; both polarities are tried\n"
       "(black squares may be warm); corners are refined on the normalised data; unreliable views are\n"
       "rejected with the reason; the distortion terms are chosen by cross-validation over views.\n"
+      "The pattern is searched on images of at most 1000 px (larger ones are downscaled) and refined\n"
+      "at full resolution. Images of another size than the largest group of images with the pattern\n"
+      "are skipped and named. An estimate that fails its checks (finite, principal point inside the\n"
+      "image, RMS within --max-rms) is reported as failed and not written (exit 2).\n"
       "Writes a ROS camera_info YAML and, with --report, report.md, per-view errors and PNGs."};
   std::string images_dir, pattern_name = "checkerboard", model_name = "plumb_bob", out, report_dir, camera_name = "camera";
   int cols = 0, rows = 0;
@@ -102,6 +148,14 @@ int main(int argc, char** argv) {
   app.add_option("--report", report_dir, "folder for report.md, per-view errors and PNGs");
   app.add_option("--camera-name", camera_name, "camera_name in the YAML")->capture_default_str();
   app.add_flag("--all-terms", all_terms, "fit every distortion term of the model (no selection)");
+  bool with_baseline = false;
+  double max_rms = 1.0;
+  app.add_option("--max-rms", max_rms, "largest acceptable RMS reprojection error of the estimate [px]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--baseline", with_baseline,
+               "also run plain OpenCV (findChessboardCorners + calibrateCamera on the full-size images) "
+               "for comparison; unbounded: minutes per large image without the pattern");
   CLI11_PARSE(app, argc, argv);
   try {
     ct::PatternSpec pattern;
@@ -133,44 +187,83 @@ int main(int argc, char** argv) {
         return 1;
       }
     }
-    std::vector<cv::Mat> images;
-    std::vector<ct::PatternDetection> det;
-    std::vector<std::string> names;
-    cv::Size size;
-    int plain = 0;
-    std::vector<std::vector<cv::Point2f>> plain_points;
+    if (!report_dir.empty()) rgbdt::core::remove_stale_output((fs::path(report_dir) / "report.md").string());
+    rgbdt::core::install_interrupt_handler();
+    // Detection on every image; the sizes are grouped afterwards.
+    std::vector<cv::Mat> all_images;
+    std::vector<ct::PatternDetection> all_det;
     for (const auto& file : files) {
+      if (rgbdt::core::interrupted()) {
+        std::cerr << "interrupted after " << all_det.size() << " of " << files.size() << " images; nothing was written\n";
+        return 130;
+      }
       cv::Mat img = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-      names.push_back(file.filename().string());
       ct::PatternDetection d;
       if (img.empty()) {
-        d.reason = "cannot read " + file.string();
-      } else if (!size.empty() && img.size() != size) {
-        d.reason = "size " + std::to_string(img.cols) + "x" + std::to_string(img.rows) + " differs from the first image's " +
-                   std::to_string(size.width) + "x" + std::to_string(size.height);
+        d.reason = "cannot read " + file.string() + " (expected an image: png, jpg, tif, bmp)";
       } else {
-        size = img.size();
         d = ct::detect_pattern(img, pattern);
-        // Baseline: plain OpenCV on the image as stored (8-bit view of it).
-        if (pattern.type == ct::PatternType::kCheckerboard && img.depth() == CV_8U) {
-          std::vector<cv::Point2f> p;
-          cv::Mat grey = img;
-          if (img.channels() == 3) cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
-          if (cv::findChessboardCorners(grey, cv::Size(cols, rows), p)) {
-            ++plain;
-            plain_points.push_back(p);
-          }
-        }
       }
       std::cout << file.filename().string() << ": " << (d.ok ? "found (" + d.method + ")" : d.reason) << "\n";
+      std::cout.flush();
+      all_images.push_back(img);
+      all_det.push_back(d);
+    }
+    // The image size: that of the largest group of images where the pattern was found (a
+    // stray image of another size does not decide it).
+    std::map<std::pair<int, int>, int> groups;
+    for (std::size_t k = 0; k < files.size(); ++k)
+      if (all_det[k].ok) ++groups[{all_images[k].cols, all_images[k].rows}];
+    cv::Size size;
+    int best = 0;
+    for (const auto& [wh, count] : groups)
+      if (count > best) {
+        best = count;
+        size = cv::Size(wh.first, wh.second);
+      }
+    std::vector<cv::Mat> images;
+    std::vector<ct::PatternDetection> det;
+    std::vector<std::string> names, skipped;
+    for (std::size_t k = 0; k < files.size(); ++k) {
+      const std::string name = files[k].filename().string();
+      const cv::Mat& img = all_images[k];
+      if (!img.empty() && !size.empty() && img.size() != size) {
+        const std::string why = "size " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
+                                " differs from the " + std::to_string(size.width) + "x" + std::to_string(size.height) +
+                                " of the " + std::to_string(best) + " image(s) with the pattern";
+        std::cout << "  skipped " << name << ": " << why << "\n";
+        skipped.push_back(name + ": " + why);
+        continue;
+      }
       images.push_back(img);
-      det.push_back(d);
+      det.push_back(all_det[k]);
+      names.push_back(name);
+    }
+    if (size.empty()) {
+      std::cerr << "error: the " << pattern.cols << "x" << pattern.rows << " " << pattern_name
+                << " pattern was found in none of the " << files.size() << " images of " << images_dir << "\n";
+      return 1;
+    }
+    int plain = 0;
+    std::vector<std::vector<cv::Point2f>> plain_points;
+    if (with_baseline && pattern.type == ct::PatternType::kCheckerboard) {
+      // Baseline: plain OpenCV on the images as stored (8-bit ones only).
+      for (const cv::Mat& img : images) {
+        if (img.depth() != CV_8U) continue;
+        std::vector<cv::Point2f> p;
+        cv::Mat grey = img;
+        if (img.channels() == 3) cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+        if (cv::findChessboardCorners(grey, cv::Size(cols, rows), p)) {
+          ++plain;
+          plain_points.push_back(p);
+        }
+      }
     }
     const auto result = ct::calibrate_intrinsics(det, names, size, pattern, options);
     std::string baseline;
-    if (pattern.type == ct::PatternType::kCheckerboard) {
+    if (with_baseline && pattern.type == ct::PatternType::kCheckerboard) {
       std::ostringstream s;
-      s << "findChessboardCorners found " << plain << "/" << files.size();
+      s << "findChessboardCorners found " << plain << "/" << images.size();
       if (plain >= 3) {
         std::vector<std::vector<cv::Point3f>> obj(plain_points.size(), pattern.object_points());
         cv::Mat K, D;
@@ -183,15 +276,16 @@ int main(int argc, char** argv) {
     int found = 0;
     for (const auto& d : det) found += d.ok ? 1 : 0;
     std::cout << "detected " << found << "/" << files.size() << " views";
+    if (!skipped.empty()) std::cout << ", " << skipped.size() << " image(s) of another size skipped";
     if (!baseline.empty()) std::cout << " (baseline: " << baseline << ")";
     std::cout << "\n";
     if (!result.ok) {
       std::cerr << "error: calibration failed: " << result.reason << "\n";
       return 1;
     }
+    const std::string verdict = verdict_problem(result, size, max_rms);
     auto intrinsics = result.intrinsics;
     intrinsics.camera_name = camera_name;
-    rgbdt::core::write_camera_info(out, intrinsics);
     std::cout << std::setprecision(6) << "RMS " << result.rms_px << " px, terms: " << result.distortion_terms
               << ", coverage " << result.coverage * 100 << " %\n";
     for (std::size_t k = 0; k < result.parameters.size(); ++k) {
@@ -200,10 +294,19 @@ int main(int argc, char** argv) {
     for (const auto& v : result.views) {
       if (!v.used && !v.reason.empty()) std::cout << "  rejected " << v.name << ": " << v.reason << "\n";
     }
+    if (rgbdt::core::interrupted()) {
+      std::cerr << "interrupted before writing; nothing was written\n";
+      return 130;
+    }
     if (!report_dir.empty()) {
-      write_report(report_dir, result, images, det, baseline);
+      write_report(report_dir, result, images, det, baseline, skipped, verdict);
       std::cout << "report: " << (fs::path(report_dir) / "report.md").string() << "\n";
     }
+    if (!verdict.empty()) {
+      std::cerr << "error: calibration failed its checks: " << verdict << "; " << out << " was not written\n";
+      return 2;
+    }
+    rgbdt::core::write_file_atomic(out, rgbdt::core::format_camera_info(intrinsics));
     std::cout << "wrote " << out << "\n";
     return 0;
   } catch (const std::exception& e) {

@@ -344,6 +344,32 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
       det.reason = "seed (" + std::to_string(s.x()) + ", " + std::to_string(s.y()) + ") outside the image";
       return det;
     }
+    // The seed picks among the hole candidates the automatic search finds: the smallest
+    // one that contains it. Only when none does, the seed's own region (grown with a loose
+    // threshold) gives the hole; on blurred thermal edges that region can leak out of the
+    // hole into an ellipse several times too large, which then misleads the calibration.
+    {
+      const auto cand = find_candidates(f, min_axis, max_axis, options);
+      int best = -1;
+      double best_area = 0.0;
+      for (std::size_t i = 0; i < cand.size(); ++i) {
+        const cv::RotatedRect& e = cand[i].ellipse;
+        const double a = 0.5 * e.size.width, b = 0.5 * e.size.height;
+        if (!(a > 0 && b > 0)) continue;
+        const double th = e.angle * kPi / 180.0;
+        const double dx = seed_px->x() - e.center.x, dy = seed_px->y() - e.center.y;
+        const double u = std::cos(th) * dx + std::sin(th) * dy, v = -std::sin(th) * dx + std::cos(th) * dy;
+        if ((u * u) / (a * a) + (v * v) / (b * b) > 1.0) continue;
+        if (best < 0 || a * b < best_area) {
+          best = static_cast<int>(i);
+          best_area = a * b;
+        }
+      }
+      if (best >= 0) chosen.push_back(cand[static_cast<std::size_t>(best)]);
+    }
+  }
+  if (seed_px && chosen.empty()) {
+    const Eigen::Vector2i s = seed_px->array().round().cast<int>();
     // Contrast from the seed's region grown with a loose threshold: its ring gives the board.
     cv::Mat region;
     const auto bnd = grow_region(smooth, s, 0.05, 0.25, &region,
@@ -363,7 +389,7 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
       return det;
     }
     chosen.push_back(c);
-  } else {
+  } else if (!seed_px) {
     const auto cand = find_candidates(f, min_axis, max_axis, options);
     std::string why;
     const auto pick = match_layout_image(layout, cand, options.up_image.normalized(), &why);

@@ -260,6 +260,11 @@ namespace {
 /// Measured: simulated thermal boards 0.09-0.33 px; blurred real ones (czha626) 1.5-5 px.
 constexpr double kRefinementAgreementPx = 0.75;
 
+/// The detectors search images of at most this size [px] (larger ones are downscaled).
+constexpr int kSearchWidthPx = 1000;
+/// The 2x upscaled attempt (small patterns) only for images whose copy stays this small.
+constexpr int kMaxUpscaledWidthPx = 1400;
+
 /// Mean of the normalised image over a small square around a point (clamped to the image).
 double patch_mean(const cv::Mat& f, cv::Point2f c, int half) {
   const int x0 = std::clamp(static_cast<int>(std::lround(c.x)) - half, 0, f.cols - 1);
@@ -328,15 +333,30 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
     double scale;
     std::string name;
   };
-  std::vector<Variant> variants = {{u8, false, 1.0, "normalised"}};
-  if (options.try_inverted) variants.push_back({255 - u8, true, 1.0, "normalised inverted"});
+  // The search runs on images of at most kSearchWidthPx (a larger image is downscaled; its
+  // corners are refined at full resolution afterwards): the detectors' cost grows much
+  // faster than the pixel count (findChessboardCorners on a 1288x964 image without a
+  // pattern: 100 s, on a 1000 px wide copy: 0.5 s).
+  const double search_scale = std::min(1.0, kSearchWidthPx / static_cast<double>(std::max(u8.cols, u8.rows)));
+  cv::Mat search = u8;
+  std::string scale_name;
+  if (search_scale < 1.0) {
+    cv::resize(u8, search, cv::Size(), search_scale, search_scale, cv::INTER_AREA);
+    std::ostringstream os;
+    os.precision(2);
+    os << " " << search_scale << "x";
+    scale_name = os.str();
+  }
+  std::vector<Variant> variants = {{search, false, search_scale, "normalised" + scale_name}};
+  if (options.try_inverted) variants.push_back({255 - search, true, search_scale, "normalised inverted" + scale_name});
   if (options.try_clahe) {
     cv::Mat c;
-    cv::createCLAHE(3.0, cv::Size(8, 8))->apply(u8, c);
-    variants.push_back({c, false, 1.0, "CLAHE"});
-    if (options.try_inverted) variants.push_back({255 - c, true, 1.0, "CLAHE inverted"});
+    cv::createCLAHE(3.0, cv::Size(8, 8))->apply(search, c);
+    variants.push_back({c, false, search_scale, "CLAHE" + scale_name});
+    if (options.try_inverted) variants.push_back({255 - c, true, search_scale, "CLAHE inverted" + scale_name});
   }
-  if (options.try_upscale) {
+  // Small images only (thermal cameras): the 2x copy stays within kMaxUpscaledWidthPx.
+  if (options.try_upscale && 2 * std::max(u8.cols, u8.rows) <= kMaxUpscaledWidthPx) {
     cv::Mat up;
     cv::resize(u8, up, cv::Size(), 2.0, 2.0, cv::INTER_CUBIC);
     variants.push_back({up, false, 2.0, "normalised 2x"});
@@ -344,13 +364,19 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
   }
   // Cheapest attempts first: every variant with the default detectors, then the
   // exhaustive sector-based search on the normalised image only.
-  // Attempts: (variant, mode) with mode 0 = sector-based detector (SB), 1 = SB exhaustive,
-  // 2 = classic quad detector (its corners are less accurate, so it comes last).
+  // Attempts: (variant, mode) with mode 0 = sector-based detector (SB), 3 = SB without its
+  // own histogram equalisation (CALIB_CB_NORMALIZE_IMAGE amplifies the noise of a large
+  // uniform background until a small board is lost: 3 of 6 simulated RGB board images),
+  // 1 = SB exhaustive, 2 = classic quad detector (its corners are less accurate, so it
+  // comes last; with CALIB_CB_FAST_CHECK, and only on images that were not downscaled:
+  // on a 1000 px copy of an RGB board image it still runs 4-10 s per variant).
   std::vector<std::pair<const Variant*, int>> attempts;
   for (const Variant& v : variants) attempts.emplace_back(&v, 0);
   if (pattern.type == PatternType::kCheckerboard) {
+    for (const Variant& v : variants) attempts.emplace_back(&v, 3);
     attempts.emplace_back(&variants[0], 1);
-    for (const Variant& v : variants) attempts.emplace_back(&v, 2);
+    for (const Variant& v : variants)
+      if (v.scale >= 1.0 && std::max(v.img.cols, v.img.rows) <= kMaxUpscaledWidthPx) attempts.emplace_back(&v, 2);
   }
   std::string rejected;  // the last detection that failed the saddle check
   for (const auto& [vp, mode] : attempts) {
@@ -360,13 +386,18 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
     bool found = false;
     std::string method;
     if (pattern.type == PatternType::kCheckerboard) {
-      if (mode < 2) {
-        const int sb_flags = cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_ACCURACY | (exhaustive ? cv::CALIB_CB_EXHAUSTIVE : 0);
+      if (mode != 2) {
+        // CALIB_CB_ACCURACY only where the corners are final: a downscaled copy's are
+        // refined at full resolution below.
+        const int sb_flags = (mode == 3 ? 0 : cv::CALIB_CB_NORMALIZE_IMAGE) |
+                             (v.scale >= 1.0 ? cv::CALIB_CB_ACCURACY : 0) | (exhaustive ? cv::CALIB_CB_EXHAUSTIVE : 0);
         found = cv::findChessboardCornersSB(v.img, size, pts, sb_flags);
-        method = exhaustive ? "findChessboardCornersSB (exhaustive)" : "findChessboardCornersSB";
+        method = exhaustive ? "findChessboardCornersSB (exhaustive)"
+                            : mode == 3 ? "findChessboardCornersSB (no equalisation)" : "findChessboardCornersSB";
       } else {
         found = cv::findChessboardCorners(v.img, size, pts,
-                                          cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FILTER_QUADS);
+                                          cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE |
+                                              cv::CALIB_CB_FILTER_QUADS | cv::CALIB_CB_FAST_CHECK);
         method = "findChessboardCorners";
       }
     } else {
@@ -411,7 +442,8 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
       for (std::size_t k = 0; k < pts.size(); ++k) moves.push_back(cv::norm(refined[k] - pts[k]));
       std::sort(moves.begin(), moves.end());
       const double p90_move = moves[moves.size() * 9 / 10];
-      if (mode == 2 || p90_move <= kRefinementAgreementPx) {
+      // A downscaled detection's corners are only as precise as its pixels are large.
+      if (mode == 2 || p90_move <= kRefinementAgreementPx / std::min(1.0, v.scale)) {
         pts = refined;
       } else {
         std::ostringstream os;

@@ -781,12 +781,36 @@ LidarTargetDetection detect_target_in_cloud(const cloud::Cloud& cloud, bool has_
       det.reason = "no points near the seed (nearest at " + std::to_string(nearest_d) + " m)";
       return det;
     }
-    std::vector<int> fg, bg;
-    if (!sac_plane(pts, fr, opt.sac_distance_m, &fg, &bg)) {  // line 1
-      det.reason = "no plane around the seed";
+    // Lines 1-5: planes around the seed, largest first, until one holds the point nearest
+    // the seed. The rest of a plane's complement is not a plane: a backdrop larger than the
+    // board is often the first plane found, and the board is among what remains.
+    std::vector<int> fg, rest = fr;
+    for (int k = 0; k < 6 && rest.size() >= 3 && fg.empty(); ++k) {
+      std::vector<int> in, out;
+      if (!sac_plane(pts, rest, opt.sac_distance_m, &in, &out)) break;  // line 1
+      if (std::find(in.begin(), in.end(), nearest) != in.end()) fg = std::move(in);
+      rest = std::move(out);
+    }
+    if (fg.empty()) {
+      det.reason = "no plane through the point nearest the seed";
       return det;
     }
-    if (std::find(fg.begin(), fg.end(), nearest) == fg.end()) std::swap(fg, bg);  // lines 3-5
+    // Keep the part of that plane that contains the seed: a plane's inliers also include
+    // unconnected surfaces it cuts (e.g. a strip of the backdrop where the board's plane
+    // meets it, metres away), which would make the segment far larger than the board.
+    // The tolerance bridges the gap between scan lines on the board, not the gap to the
+    // backdrop.
+    {
+      const double tolerance = std::max(0.15, 0.25 * board_half_diag);
+      std::vector<int> part;
+      for (auto& cluster : clusters_of(pts, fg, tolerance, 3)) {
+        if (std::find(cluster.begin(), cluster.end(), nearest) != cluster.end()) {
+          part = std::move(cluster);
+          break;
+        }
+      }
+      if (part.size() >= 3) fg = std::move(part);
+    }
     std::vector<int> c;
     if (!sac_plane(pts, fg, opt.refit_distance_m, &c, nullptr)) {  // line 6
       det.reason = "the seed's segment is not planar";

@@ -151,6 +151,21 @@ TEST(Intrinsics, SyntheticThermalBeatsPlainOpenCv) {
   EXPECT_GT(res.coverage, 0.3);
 }
 
+// An RGB-sized image without a pattern: the search is bounded (it ran for minutes and took
+// a gigabyte in findChessboardCorners on the full-size image) and says "not found".
+TEST(Intrinsics, NoPatternInALargeImageIsNotFound) {
+  cv::Mat noise(964, 1288, CV_8U);
+  cv::RNG rng(7);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  rgbdt::calib_targets::PatternSpec pattern;
+  pattern.cols = 8;
+  pattern.rows = 6;
+  pattern.spacing_m = 0.05;
+  const auto d = rgbdt::calib_targets::detect_pattern(noise, pattern);
+  EXPECT_FALSE(d.ok) << d.method;
+  EXPECT_NE(d.reason.find("not found"), std::string::npos) << d.reason;
+}
+
 TEST(Intrinsics, BadViewsAreRejectedWithReasons) {
   auto views = render_views(5, 7u);  // 5 good views
   views.push_back(cv::Mat(kH, kW, CV_16U, cv::Scalar(7000)));  // no pattern
