@@ -5,7 +5,7 @@
 
 #include "rgbdt/calib_targets/image_target.hpp"
 #include "rgbdt/calib_targets/lidar_target.hpp"
-#include "rgbdt/cloud/pcd_io.hpp"
+#include "rgbdt/cloud/cloud_io.hpp"
 #include "rgbdt/core/error.hpp"
 
 namespace rgbdt::calibrate {
@@ -60,7 +60,7 @@ SessionDetections detect_session_views(const core::CalibrationSession& session,
     std::string lidar_note;
     std::size_t cloud_points = 0;
     try {
-      const cloud::LoadedCloud loaded = cloud::load_pcd(view.cloud);
+      const cloud::LoadedCloud loaded = cloud::load_cloud(view.cloud);
       cloud_points = loaded.cloud->size();
       const auto detect = [&](std::optional<Eigen::Vector3d> seed) {
         return calib_targets::detect_target_in_cloud(*loaded.cloud, loaded.has_ring, session.target, {}, seed);

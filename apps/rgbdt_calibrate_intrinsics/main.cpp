@@ -18,6 +18,7 @@
 #include "rgbdt/calib_targets/intrinsics.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/image_header.hpp"
 #include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/output.hpp"
 
@@ -197,9 +198,23 @@ int main(int argc, char** argv) {
         std::cerr << "interrupted after " << all_det.size() << " of " << files.size() << " images; nothing was written\n";
         return 130;
       }
-      cv::Mat img = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+      // PNG and JPEG headers are checked before decoding, so a file claiming a huge size is
+      // refused before OpenCV allocates for it (other formats go to OpenCV directly).
+      std::string header_problem;
+      const std::string ext = fs::path(file).extension().string();
+      if (ext == ".png" || ext == ".PNG" || ext == ".jpg" || ext == ".jpeg" || ext == ".JPG" || ext == ".JPEG") {
+        try {
+          (void)rgbdt::core::read_image_header(file.string());
+        } catch (const std::exception& e) {
+          header_problem = e.what();
+        }
+      }
+      cv::Mat img;
+      if (header_problem.empty()) img = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
       ct::PatternDetection d;
-      if (img.empty()) {
+      if (!header_problem.empty()) {
+        d.reason = header_problem;
+      } else if (img.empty()) {
         d.reason = "cannot read " + file.string() + " (expected an image: png, jpg, tif, bmp)";
       } else {
         d = ct::detect_pattern(img, pattern);
