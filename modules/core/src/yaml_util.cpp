@@ -128,7 +128,19 @@ std::string YamlField::where() const {
 std::string YamlField::describe_value() const {
   if (node_.IsScalar()) return "'" + printable(node_.Scalar()) + "'";
   if (node_.IsMap()) return "a mapping";
-  if (node_.IsSequence()) return "a list of " + std::to_string(node_.size()) + " items";
+  if (node_.IsSequence()) {
+    // Short lists of scalars are shown as written, e.g. [-1.2, 0].
+    std::string items;
+    for (std::size_t i = 0; i < node_.size() && items.size() <= 60; ++i) {
+      if (!node_[i].IsScalar()) {
+        items.clear();
+        break;
+      }
+      items += (i ? ", " : "") + printable(node_[i].Scalar(), 20);
+    }
+    if (!items.empty() && items.size() <= 60) return "[" + items + "]";
+    return "a list of " + std::to_string(node_.size()) + " items";
+  }
   return "nothing";
 }
 
