@@ -115,8 +115,10 @@ YAML::Node load_yaml_string(const std::string& text, const std::string& source) 
 // ---------------------------------------------------------------------------------------
 // YamlField
 
+// A missing child (yaml-cpp's "zombie" node) throws on every question but IsDefined(); it
+// is kept as an empty node so that errors about it can be raised.
 YamlField::YamlField(YAML::Node node, std::string file, std::string path)
-    : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
+    : node_(node.IsDefined() ? std::move(node) : YAML::Node()), file_(std::move(file)), path_(std::move(path)) {}
 
 std::string YamlField::where() const {
   std::string w = path_.empty() ? std::string("the document") : "key '" + printable(path_, 200) + "'";

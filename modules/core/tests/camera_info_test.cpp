@@ -2,6 +2,7 @@
 
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/test/test_util.hpp"
 
 using namespace rgbdt::core;
@@ -193,4 +194,14 @@ TEST(CameraInfo, DuplicateKeysAreRefusedWithTheirLines) {
   const std::string text = std::string(kRosYaml) + "image_width: 1280\n";
   expect_error_mentions<Error>([&] { parse_camera_info(text, "cam.yaml"); },
                                {"cam.yaml", "image_width", "twice", "lines 1 and 21"});
+}
+
+TEST(YamlUtil, MissingNodesGiveErrorsNotYamlCppExceptions) {
+  const YAML::Node root = load_yaml_string("a: {b: 1}\n", "x.yaml");
+  const YAML::Node& const_root = root;
+  // Callers in other modules pass children that may not exist.
+  expect_error_mentions<Error>([&] { require_double(const_root["missing"], "b", "x.yaml (missing)"); },
+                               {"x.yaml (missing)", "b"});
+  expect_error_mentions<Error>([&] { YamlField(const_root["missing"], "x.yaml", "missing").as_double(); },
+                               {"x.yaml", "missing", "nothing", "finite number"});
 }
