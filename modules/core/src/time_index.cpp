@@ -8,6 +8,7 @@
 #include <optional>
 #include <string_view>
 #include <sstream>
+#include <stdexcept>
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/output.hpp"
@@ -90,6 +91,7 @@ std::vector<TimedFile> read_time_index(const std::string& csv_path) {
 }
 
 void write_time_index(const std::string& csv_path, const std::vector<TimedFile>& entries) {
+  if (csv_path.empty()) throw std::invalid_argument("write_time_index: empty index path");
   const fs::path dir = fs::absolute(fs::path(csv_path)).parent_path();
   std::ostringstream out;
   out << "time_s,file\n" << std::setprecision(17);
