@@ -34,12 +34,16 @@ int distortion_size(DistortionModel model) {
 
 std::string CameraIntrinsics::validate() const {
   std::ostringstream os;
-  if (width <= 0 || height <= 0) {
-    os << "image size " << width << "x" << height << " must be positive";
+  if (width <= 0 || height <= 0 || width > kMaxImageSide || height > kMaxImageSide) {
+    os << "image size " << width << "x" << height << " must be positive and at most "
+       << kMaxImageSide << " px a side";
   } else if (!(fx > 0) || !(fy > 0) || !std::isfinite(fx) || !std::isfinite(fy)) {
     os << "focal lengths fx=" << fx << " fy=" << fy << " must be positive and finite";
   } else if (!std::isfinite(cx) || !std::isfinite(cy)) {
     os << "principal point (" << cx << ", " << cy << ") must be finite";
+  } else if (!(cx >= 0 && cx <= width && cy >= 0 && cy <= height)) {
+    os << "principal point (" << cx << ", " << cy << ") must lie inside the " << width << "x"
+       << height << " image";
   } else if (static_cast<int>(distortion.size()) > distortion_size(model) &&
              model != DistortionModel::kPlumbBob) {
     os << to_string(model) << " takes " << distortion_size(model) << " coefficients, got "

@@ -5,25 +5,22 @@
 #include <sstream>
 
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/output.hpp"
 #include "rgbdt/core/yaml_util.hpp"
 
 namespace rgbdt::core {
 namespace {
 
-std::vector<double> matrix_data(const YAML::Node& root, const std::string& key, int rows, int cols,
-                                const std::string& source) {
-  const YAML::Node m = require_key(root, key, source,
-                                   "{rows: " + std::to_string(rows) + ", cols: " +
+// A ROS matrix entry {rows: R, cols: C, data: [R*C finite numbers]} of the given shape.
+std::vector<double> matrix_data(const YamlField& root, const std::string& key, int rows, int cols) {
+  const std::string shape = std::to_string(rows) + "x" + std::to_string(cols);
+  const YamlField m = root.at(key, "{rows: " + std::to_string(rows) + ", cols: " +
                                        std::to_string(cols) + ", data: [...]}");
-  if (!m.IsMap()) throw Error(source, "key '" + key + "' must be a mapping with rows, cols, data");
-  const int r = require_int(m, "rows", source + " (" + key + ")");
-  const int c = require_int(m, "cols", source + " (" + key + ")");
-  if (rows >= 0 && (r != rows || c != cols)) {
-    std::ostringstream os;
-    os << "key '" << key << "' is " << r << "x" << c << ", expected " << rows << "x" << cols;
-    throw Error(source, os.str());
-  }
-  return require_numbers(m, "data", source + " (" + key + ")", r * c);
+  m.expect_map("a mapping {rows, cols, data} of a " + shape + " matrix");
+  const auto r = m.at("rows", "an integer").as_integer(rows, rows, "rows: " + std::to_string(rows) + " (a " + shape + " matrix)");
+  const auto c = m.at("cols", "an integer").as_integer(cols, cols, "cols: " + std::to_string(cols) + " (a " + shape + " matrix)");
+  return m.at("data", "a list of " + std::to_string(r * c) + " numbers")
+      .as_numbers(static_cast<int>(r * c), "a list of " + std::to_string(r * c) + " numbers");
 }
 
 void write_matrix(std::ostream& os, const char* key, int rows, int cols,
@@ -33,60 +30,90 @@ void write_matrix(std::ostream& os, const char* key, int rows, int cols,
   os << "]\n";
 }
 
+// Coefficients each ROS model name takes.
+int ros_model_size(const std::string& name) {
+  if (name == "plumb_bob") return 5;
+  if (name == "rational_polynomial") return 8;
+  if (name == "equidistant" || name == "fisheye") return 4;
+  if (name == "none") return 0;
+  return -1;
+}
+
 }  // namespace
 
-CameraIntrinsics parse_camera_info(const std::string& text, const std::string& source) {
-  const YAML::Node root = load_yaml_string(text, source);
+static CameraIntrinsics parse_camera_info_node(const YAML::Node& document, const std::string& source) {
+  const YamlField root(document, source);
   CameraIntrinsics c;
-  c.width = require_int(root, "image_width", source);
-  c.height = require_int(root, "image_height", source);
-  if (root["camera_name"]) c.camera_name = require_string(root, "camera_name", source);
-  const std::vector<double> K = matrix_data(root, "camera_matrix", 3, 3, source);
+  const std::string size_range = " in [1, " + std::to_string(kMaxImageSide) + "]";
+  c.width = static_cast<int>(root.at("image_width", "an integer")
+                                 .as_integer(1, kMaxImageSide, "an integer width in pixels" + size_range));
+  c.height = static_cast<int>(root.at("image_height", "an integer")
+                                  .as_integer(1, kMaxImageSide, "an integer height in pixels" + size_range));
+  if (const auto name = root.find("camera_name")) c.camera_name = name->as_string("a camera name", true);
+  const std::vector<double> K = matrix_data(root, "camera_matrix", 3, 3);
+  const YamlField k_field = root.at("camera_matrix", "").at("data", "");
   c.fx = K[0];
   c.fy = K[4];
   c.cx = K[2];
   c.cy = K[5];
-  if (K[1] != 0.0) {
-    throw Error(source, "camera_matrix has skew " + std::to_string(K[1]) + ", expected 0");
-  }
+  if (K[1] != 0.0) k_field.fail("skew " + std::to_string(K[1]) + ", expected 0 (no skew)");
   if (K[3] != 0.0 || K[6] != 0.0 || K[7] != 0.0 || K[8] != 1.0) {
-    throw Error(source, "camera_matrix is not of the form [fx 0 cx; 0 fy cy; 0 0 1]");
+    k_field.fail("expected the form [fx 0 cx; 0 fy cy; 0 0 1]");
   }
-  const std::string model = root["distortion_model"]
-                                ? require_string(root, "distortion_model", source)
-                                : std::string("plumb_bob");
-  try {
-    c.model = distortion_model_from_string(model);
-  } catch (const std::invalid_argument& e) {
-    throw Error(source, std::string("key 'distortion_model': ") + e.what());
+  if (!(c.fx > 0.0) || !(c.fy > 0.0)) {
+    k_field.fail("fx = " + std::to_string(c.fx) + ", fy = " + std::to_string(c.fy) +
+                 ", expected focal lengths > 0 px");
   }
-  if (root["distortion_coefficients"]) {
-    const YAML::Node d = root["distortion_coefficients"];
-    const int r = require_int(d, "rows", source + " (distortion_coefficients)");
-    const int n = require_int(d, "cols", source + " (distortion_coefficients)");
-    c.distortion = require_numbers(d, "data", source + " (distortion_coefficients)", r * n);
+  if (!(c.cx >= 0.0 && c.cx <= c.width) || !(c.cy >= 0.0 && c.cy <= c.height)) {
+    std::ostringstream os;
+    os << "principal point cx = " << c.cx << ", cy = " << c.cy << ", expected inside the "
+       << c.width << "x" << c.height << " image (0 <= cx <= " << c.width << ", 0 <= cy <= "
+       << c.height << ")";
+    k_field.fail(os.str());
   }
-  const int expected = distortion_size(c.model);
-  if (c.model == DistortionModel::kEquidistant && static_cast<int>(c.distortion.size()) != expected) {
-    throw Error(source, "distortion_coefficients has " + std::to_string(c.distortion.size()) +
-                            " values, expected 4 (k1 k2 k3 k4) for equidistant");
+  const auto model_field = root.find("distortion_model");
+  const std::string model = model_field ? model_field->as_string("a distortion model name")
+                                        : std::string("plumb_bob");
+  const int n_model = ros_model_size(model);
+  if (n_model < 0) {
+    model_field->fail("expected plumb_bob, rational_polynomial (with k4 = k5 = k6 = 0) or equidistant");
   }
-  if (c.model == DistortionModel::kPlumbBob && !c.distortion.empty() && c.distortion.size() < 4) {
-    throw Error(source, "distortion_coefficients has " + std::to_string(c.distortion.size()) +
-                            " values, expected 5 (k1 k2 p1 p2 k3) for plumb_bob");
+  if (const auto d = root.find("distortion_coefficients")) {
+    const std::string expected = std::to_string(n_model) + " coefficients for distortion_model " + model;
+    d->expect_map("a mapping {rows: 1, cols: N, data: [N numbers]}");
+    const auto r = d->at("rows", "an integer").as_integer(0, 1, "rows: 1 (" + expected + ")");
+    const auto n = d->at("cols", "an integer").as_integer(0, 64, "cols: N (" + expected + ")");
+    const YamlField data = d->at("data", "a list of " + expected);
+    if (r * n != static_cast<long long>(data.node().size())) {
+      data.fail("expected rows x cols = " + std::to_string(r) + " x " + std::to_string(n) + " numbers");
+    }
+    c.distortion = data.as_numbers(static_cast<int>(r * n));
+    if (static_cast<int>(c.distortion.size()) != n_model) {
+      data.fail("expected " + expected + (model == "rational_polynomial"
+                                              ? " (k1 k2 p1 p2 k3 k4 k5 k6; supported when k4 = k5 = k6 = 0, as plumb_bob)"
+                                              : std::string()));
+    }
+    if (model == "rational_polynomial" &&
+        (c.distortion[5] != 0.0 || c.distortion[6] != 0.0 || c.distortion[7] != 0.0)) {
+      data.fail("expected k4 = k5 = k6 = 0 (the rational model is supported only as plumb_bob)");
+    }
   }
-  c.distortion.resize(std::max<size_t>(c.distortion.size(), expected), 0.0);
+  c.model = distortion_model_from_string(model == "rational_polynomial" ? "plumb_bob" : model);
+  if (model == "rational_polynomial") c.distortion.resize(5);
+  c.distortion.resize(static_cast<std::size_t>(distortion_size(c.model)), 0.0);
+  if (root.has("rectification_matrix")) matrix_data(root, "rectification_matrix", 3, 3);
+  if (root.has("projection_matrix")) matrix_data(root, "projection_matrix", 3, 4);
   const std::string why = c.validate();
   if (!why.empty()) throw Error(source, why);
   return c;
 }
 
+CameraIntrinsics parse_camera_info(const std::string& text, const std::string& source) {
+  return parse_camera_info_node(load_yaml_string(text, source), source);
+}
+
 CameraIntrinsics read_camera_info(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(path, "cannot open camera_info file for reading");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_camera_info(ss.str(), path);
+  return parse_camera_info_node(load_yaml_file(path), path);
 }
 
 std::string format_camera_info(const CameraIntrinsics& c) {
@@ -107,10 +134,7 @@ std::string format_camera_info(const CameraIntrinsics& c) {
 void write_camera_info(const std::string& path, const CameraIntrinsics& c) {
   const std::string why = c.validate();
   if (!why.empty()) throw std::invalid_argument("cannot write " + path + ": " + why);
-  std::ofstream out(path);
-  if (!out) throw Error(path, "cannot open file for writing");
-  out << format_camera_info(c);
-  if (!out) throw Error(path, "write failed");
+  write_file_atomic(path, format_camera_info(c));
 }
 
 }  // namespace rgbdt::core

@@ -137,3 +137,121 @@ TEST(Session, MappingSessionNeedsALidarStream) {
   write_text(dir / "session.yaml", "lidar: {rawlog: a.rawlog}\ncameras: {rgb: {intrinsics: a.yaml}}\n");
   expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); }, {"cameras.rgb", "frames"});
 }
+
+namespace {
+const std::string kViews = "views: [{cloud: a.pcd, images: {rgb: a.png}}]\n";
+const std::string kRgb = "cameras: {rgb: {intrinsics: a.yaml}}\n";
+
+void expect_calibration_error(const std::string& text, std::initializer_list<std::string> parts) {
+  const auto dir = rgbdt::test::temp_dir("bad_target");
+  write_text(dir / "session.yaml", text);
+  expect_error_mentions<Error>([&] { read_calibration_session(dir.string()); }, parts);
+}
+}  // namespace
+
+TEST(Session, TargetValuesMustBeFiniteAndPhysical) {
+  expect_calibration_error("target: {type: circle_hole, radius: .inf}\n" + kRgb + kViews,
+                           {"session.yaml", "target.radius", "'.inf'", "metres"});
+  expect_calibration_error("target: {type: circle_hole, radius: 7}\n" + kRgb + kViews,
+                           {"session.yaml", "target.radius", "'7'", "(0, 5.0] m"});
+  expect_calibration_error("target: {type: circle_hole, radius: 0.1, board_size: [-1.2, 0]}\n" + kRgb + kViews,
+                           {"session.yaml", "target.board_size", "-1.2", "(0, 20] m"});
+  expect_calibration_error("target: {type: circle_hole, radius: 0.3, board_size: [0.5, 0.5]}\n" + kRgb + kViews,
+                           {"session.yaml", "target.board_size", "larger than its holes"});
+  expect_calibration_error(
+      "target: {type: circle_hole, radius: 0.1, board_size: [1, 1], holes: [[0.45, 0]]}\n" + kRgb + kViews,
+      {"session.yaml", "target.board_size", "hole 0 at (0.45, 0)"});
+  expect_calibration_error("target: {type: circle_hole, radius: 0.1, holes: [[0, .nan]]}\n" + kRgb + kViews,
+                           {"session.yaml", "target.holes[0][1]", "'.nan'"});
+}
+
+TEST(Session, CameraNamesMustBeUsableAsFileNames) {
+  const std::string target = "target: {type: circle_hole, radius: 0.3}\n";
+  expect_calibration_error(target + "cameras: {../x: {intrinsics: a.yaml}}\nviews: [{cloud: a.pcd, images: {}}]\n",
+                           {"session.yaml", "cameras", "'../x'", "A-Z a-z 0-9 _ -"});
+  const std::string long_name(65, 'c');
+  expect_calibration_error(target + "cameras: {" + long_name + ": {intrinsics: a.yaml}}\n" + kViews,
+                           {"session.yaml", "1 to 64 characters"});
+}
+
+TEST(Session, SeedsMustBeFiniteAndNameSessionCameras) {
+  const std::string head = "target: {type: circle_hole, radius: 0.3}\n" + kRgb;
+  expect_calibration_error(head + "views: [{cloud: a.pcd, images: {rgb: a.png}, seeds: {rgb: [.nan, 3]}}]\n",
+                           {"session.yaml", "views[0].seeds.rgb[0]", "'.nan'"});
+  expect_calibration_error(head + "views: [{cloud: a.pcd, images: {rgb: a.png}, seeds: {ir: [1, 3]}}]\n",
+                           {"session.yaml", "views[0].seeds.ir", "'ir'", "session's cameras"});
+  expect_calibration_error(head + "views: [{cloud: a.pcd, images: {rgb: a.png}, seeds: {lidar: [1e300, 0, 0]}}]\n",
+                           {"session.yaml", "views[0].seeds.lidar", "1000 m"});
+}
+
+TEST(Session, DuplicateKeysAndYamlTypeErrorsNameKeyAndLine) {
+  expect_calibration_error("target: {type: circle_hole, radius: 0.3}\n" + kRgb + kViews + "target: {type: circle_hole, radius: 0.5}\n",
+                           {"session.yaml", "'target'", "twice", "lines 1 and 4"});
+  expect_calibration_error("target: [1, 2]\n" + kRgb + kViews, {"session.yaml", "'target'", "[1, 2]", "circle_hole"});
+  expect_calibration_error("target: {type: circle_hole, radius: 0.3}\ncameras: {rgb: [a.yaml]}\n" + kViews,
+                           {"session.yaml", "cameras.rgb", "intrinsics"});
+  expect_calibration_error("target: {type: circle_hole, radius: 0.3}\n" + kRgb + "views: [{cloud: {x: 1}, images: {rgb: a.png}}]\n",
+                           {"session.yaml", "views[0].cloud", "a mapping", "file path"});
+}
+
+TEST(Session, FramesNamingAFolderIsAnError) {
+  const auto dir = rgbdt::test::temp_dir("frames_folder");
+  std::filesystem::create_directories(dir / "rgb");
+  write_text(dir / "session.yaml", "lidar: {rawlog: a.rawlog}\ncameras: {rgb: {intrinsics: a.yaml, frames: rgb}}\n");
+  expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); },
+                               {"session.yaml", "cameras.rgb.frames", "folder", "CSV time index"});
+}
+
+TEST(Session, MappingSessionWithoutCamerasIsALidarOnlyMap) {
+  for (const std::string cameras : {"", "cameras: {}\n", "cameras:\n"}) {
+    const MappingSession s = parse_mapping_session("lidar: {rawlog: a.rawlog}\n" + cameras, "/tmp/s/session.yaml");
+    EXPECT_TRUE(s.cameras.empty());
+    EXPECT_EQ(s.lidar.rawlog, "/tmp/s/a.rawlog");
+  }
+}
+
+TEST(Session, RadiometryValuesMustBeFiniteNumbers) {
+  expect_error_mentions<Error>(
+      [] {
+        parse_mapping_session("lidar: {rawlog: a.rawlog}\ncameras: {thermal: {intrinsics: t.yaml, frames: t.csv, "
+                              "radiometry: {type: linear, kelvin_per_count: .inf}}}\n", "/s/session.yaml");
+      },
+      {"/s/session.yaml", "cameras.thermal.radiometry.kelvin_per_count", "'.inf'", "finite"});
+  const MappingSession s = parse_mapping_session(kMapping, "/s/session.yaml");
+  EXPECT_EQ(s.cameras.at("thermal").radiometry->source, "/s/session.yaml: cameras.thermal.radiometry");
+}
+
+TEST(Session, PreflightListsEveryProblemWithoutQuotingFiles) {
+  const auto dir = rgbdt::test::temp_dir("preflight");
+  write_text(dir / "session.yaml", kCalibration);
+  // rgb.yaml holds a line that must never be printed; thermal.yaml is missing; clouds/000.pcd
+  // is empty; the rest is missing.
+  write_text(dir / "rgb.yaml", "SECRET-FIRST-LINE\n");
+  write_text(dir / "clouds/000.pcd", "");
+  const CalibrationSession s = read_calibration_session(dir.string());
+  const std::vector<std::string> problems = preflight_problems(s);
+  std::string all;
+  for (const auto& p : problems) all += p + "\n";
+  EXPECT_EQ(problems.size(), 7u) << all;  // rgb.yaml, thermal.yaml, 000.pcd, 001.pcd, three images
+  EXPECT_EQ(all.find("SECRET"), std::string::npos) << all;
+  EXPECT_NE(all.find((dir / "rgb.yaml").string() + ": expected a YAML mapping"), std::string::npos) << all;
+  EXPECT_NE(all.find((dir / "thermal.yaml").string() + ": does not exist (expected a camera_info YAML file, named by cameras.thermal.intrinsics)"),
+            std::string::npos) << all;
+  EXPECT_NE(all.find((dir / "clouds/000.pcd").string() + ": is empty"), std::string::npos) << all;
+  EXPECT_NE(all.find("views[1].images.rgb"), std::string::npos) << all;
+}
+
+TEST(Session, MappingPreflightChecksIndexesAndTheirRows) {
+  const auto dir = rgbdt::test::temp_dir("preflight_map");
+  write_text(dir / "session.yaml", "lidar: {clouds: clouds/index.csv}\ncameras: {rgb: {intrinsics: rgb.yaml, frames: rgb/index.csv}}\n");
+  write_text(dir / "clouds/index.csv", "time_s,file\n");
+  write_text(dir / "rgb/index.csv", "time_s,file\n0.5,000.png\n");
+  const MappingSession s = read_mapping_session(dir.string());
+  const std::vector<std::string> problems = preflight_problems(s);
+  std::string all;
+  for (const auto& p : problems) all += p + "\n";
+  ASSERT_EQ(problems.size(), 3u) << all;
+  EXPECT_NE(all.find("lists no rows"), std::string::npos) << all;
+  EXPECT_NE(all.find((dir / "rgb/000.png").string() + ": does not exist"), std::string::npos) << all;
+  EXPECT_NE(all.find((dir / "rgb.yaml").string() + ": does not exist"), std::string::npos) << all;
+}

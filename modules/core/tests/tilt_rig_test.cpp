@@ -52,3 +52,18 @@ TEST(TiltRig, BadValuesAreNamed) {
   rgbdt::test::expect_error_mentions<Error>([&] { read_tilt_rig((dir / "r.yaml").string()); },
                                             {"r.yaml", "counts_per_revolution"});
 }
+
+TEST(TiltRig, NonFiniteAndUnphysicalValuesAreRefused) {
+  auto expect = [](const std::string& text, std::initializer_list<std::string> parts) {
+    rgbdt::test::expect_error_mentions<Error>([&] { parse_tilt_rig(text, "r.yaml"); }, parts);
+  };
+  expect("scanner: {scan_period_s: .inf}\n", {"r.yaml", "scanner.scan_period_s", "'.inf'", "(0, 10] s"});
+  expect("scanner: {aperture_deg: .nan}\n", {"r.yaml", "scanner.aperture_deg", "'.nan'"});
+  expect("scanner: {range_max_m: 1e300}\n", {"r.yaml", "scanner.range_max_m", "1000"});
+  expect("scanner: {beams: 0x439}\n", {"r.yaml", "scanner.beams", "'0x439'"});
+  expect("motor: {zero_count: .nan}\n", {"r.yaml", "motor.zero_count", "'.nan'"});
+  expect("mount: {translation: [0, 0, .inf]}\n", {"r.yaml", "mount.translation[2]", "'.inf'"});
+  expect("mount: {rotation_rpy_deg: [0, 1e308, 0]}\n", {"r.yaml", "mount.rotation_rpy_deg", "degrees"});
+  expect("scanner: [1, 2]\n", {"r.yaml", "scanner", "[1, 2]"});
+  expect("motor: {zero_count: 1}\nmotor: {zero_count: 2}\n", {"r.yaml", "'motor'", "twice"});
+}

@@ -11,9 +11,21 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// "<file>: cameras.thermal.radiometry (type linear)" for entries read from a session.
 std::string spec_context(const core::RadiometrySpec& spec) {
+  if (!spec.source.empty()) return spec.source + " (type " + spec.type + ")";
   return "radiometry {type: " + spec.type + "}";
 }
+
+std::string num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
+// Largest gain a linear map may have: a 16-bit count range then spans at most 65535 K.
+constexpr double kMaxKelvinPerCount = 1.0;
+constexpr double kMaxOffsetK = 10000.0;
 
 double required(const core::RadiometrySpec& spec, const std::string& key,
                 const std::string& expected) {
@@ -49,10 +61,15 @@ double planck_signal(const PlanckRadiometry& p, double t_k) {
 }  // namespace
 
 std::string LinearRadiometry::validate() const {
-  if (!std::isfinite(kelvin_per_count) || kelvin_per_count <= 0.0) {
-    return "kelvin_per_count = " + std::to_string(kelvin_per_count) + ", expected > 0";
+  if (!std::isfinite(kelvin_per_count) || kelvin_per_count <= 0.0 || kelvin_per_count > kMaxKelvinPerCount) {
+    return "key 'kelvin_per_count' has value " + num(kelvin_per_count) + ", expected a value in (0, " +
+           num(kMaxKelvinPerCount) + "] K/count";
   }
-  if (!std::isfinite(offset_k)) return "offset_k must be finite";
+  // T(0) = offset_k is the lowest temperature of the count range (kelvin_per_count > 0).
+  if (!std::isfinite(offset_k) || offset_k < 0.0 || offset_k > kMaxOffsetK) {
+    return "key 'offset_k' has value " + num(offset_k) + ", expected a value in [0, " + num(kMaxOffsetK) +
+           "] K (no count may map to a negative temperature)";
+  }
   return {};
 }
 
@@ -86,6 +103,20 @@ Radiometry::Radiometry(const PlanckRadiometry& planck) : type_(Type::kPlanck), p
     throw std::invalid_argument("planck radiometry: " + why);
   }
   reflected_signal_ = planck_signal(planck_, planck_.reflected_k);
+  if (!std::isfinite(reflected_signal_)) {
+    throw std::invalid_argument("planck radiometry: reflected_k = " + num(planck_.reflected_k) +
+                                " K gives a non-finite signal (expected constants of a real camera)");
+  }
+  // Counts outside the curve carry no temperature (NaN); every other count maps to a finite
+  // temperature > 0 K, also as float (the map's lookup table).
+  for (int c = 0; c <= 65535; ++c) {
+    const double t = kelvin_from_signal(c);
+    if (std::isnan(t)) continue;
+    if (!(t > 0.0) || !std::isfinite(static_cast<float>(t))) {
+      throw std::invalid_argument("planck radiometry: " + std::to_string(c) + " counts give " + num(t) +
+                                  " K (expected a finite temperature > 0 K for every 16-bit count)");
+    }
+  }
 }
 
 namespace {

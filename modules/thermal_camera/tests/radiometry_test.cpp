@@ -40,9 +40,9 @@ TEST(Radiometry, TLinearHighResolutionIsFourHundredthsOfAKelvinPerCount) {
 }
 
 TEST(Radiometry, TLinearLowResolutionWithOffset) {
-  const Radiometry r(spec("linear", {{"kelvin_per_count", 0.4}, {"offset_k", -10.0}}));
-  EXPECT_NEAR(r.kelvin(775), 300.0, 1e-9);  // 775 * 0.4 - 10
-  EXPECT_NEAR(r.counts(300.0), 775.0, 1e-9);
+  const Radiometry r(spec("linear", {{"kelvin_per_count", 0.4}, {"offset_k", 10.0}}));
+  EXPECT_NEAR(r.kelvin(725), 300.0, 1e-9);  // 725 * 0.4 + 10
+  EXPECT_NEAR(r.counts(300.0), 725.0, 1e-9);
 }
 
 TEST(Radiometry, LinearOffsetDefaultsToZero) {
@@ -139,4 +139,29 @@ TEST(Radiometry, BadSpecsNameTheParameter) {
   expect_mentions(spec("planck", {{"B", 1428}}), "missing parameter 'R'");
   expect_mentions(spec("planck", {{"R", 366545}, {"B", 1428}, {"emissivity", 1.5}}), "emissivity");
   EXPECT_THROW(Radiometry(typical_planck()).counts(-1.0), std::invalid_argument);
+}
+
+TEST(Radiometry, LinearGainAndOffsetGiveFinitePositiveKelvin) {
+  auto expect_mentions = [](const RadiometrySpec& s, std::initializer_list<std::string> parts) {
+    try {
+      Radiometry r(s);
+      ADD_FAILURE() << "accepted " << s.type;
+    } catch (const std::invalid_argument& e) {
+      for (const auto& part : parts) EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  RadiometrySpec huge = spec("linear", {{"kelvin_per_count", 1e300}});
+  huge.source = "/s/session.yaml: cameras.thermal.radiometry";
+  expect_mentions(huge, {"/s/session.yaml: cameras.thermal.radiometry", "kelvin_per_count", "1e+300", "(0, 1] K/count"});
+  expect_mentions(spec("linear", {{"kelvin_per_count", 0.04}, {"offset_k", -300}}), {"offset_k", "-300", "negative"});
+  expect_mentions(spec("linear", {{"kelvin_per_count", 0.04}, {"offset_k", 1e300}}), {"offset_k", "1e+300"});
+  // The TLinear default maps 0 counts to 0 K and the whole range to finite temperatures.
+  const auto lut = Radiometry(spec("linear", {{"kelvin_per_count", 0.04}, {"offset_k", 0.0}})).lookup_table();
+  for (const float t : lut) ASSERT_TRUE(std::isfinite(t) && t >= 0.0f) << t;
+}
+
+TEST(Radiometry, PlanckConstantsGivingInfiniteKelvinAreRefused) {
+  PlanckRadiometry p = typical_planck();
+  p.B = 1e300;  // B / ln(...) overflows float for every count on the curve
+  EXPECT_THROW(Radiometry{p}, std::invalid_argument);
 }

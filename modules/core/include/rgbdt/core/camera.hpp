@@ -23,6 +23,9 @@ DistortionModel distortion_model_from_string(const std::string& name);
 /// Number of coefficients the model takes (0, 5, 4).
 int distortion_size(DistortionModel model);
 
+/// Largest image width or height the readers accept [px].
+constexpr int kMaxImageSide = 20000;
+
 /// Intrinsic parameters, as in the ROS camera_info YAML.
 struct CameraIntrinsics {
   std::string camera_name = "camera";
@@ -35,7 +38,9 @@ struct CameraIntrinsics {
   /// zeros by validate()-checked constructors.
   std::vector<double> distortion;
 
-  /// Empty when the parameters are usable, else the reason (names the value).
+  /// Empty when the parameters are usable, else the reason (names the value): image size in
+  /// [1, kMaxImageSide], fx, fy finite and > 0, the principal point inside the image
+  /// (0 <= cx <= width, 0 <= cy <= height), every coefficient finite.
   std::string validate() const;
 };
 

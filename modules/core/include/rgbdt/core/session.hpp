@@ -4,6 +4,13 @@
 /// Readers resolve every relative path against the folder that holds session.yaml, so the
 /// structs carry absolute paths; writers store paths relative to that folder when they lie
 /// below it.
+///
+/// The readers check every value (errors name the file, the key path, the value and what
+/// was expected): the target radius finite in (0, 5] m, board_size finite in (0, 20] m and
+/// larger than the holes, holes finite and on the board, camera names safe as file names
+/// (is_valid_camera_name), the cameras of views and seeds declared under `cameras`, seeds
+/// finite, and no path naming a folder where a file is expected. They do not open the
+/// files a session names: preflight_problems() checks those, all at once.
 #include <Eigen/Core>
 #include <map>
 #include <optional>
@@ -30,7 +37,10 @@ struct TargetSpec {
 /// Parameters are kept by name; the thermal_camera module interprets them.
 struct RadiometrySpec {
   std::string type = "linear";
-  std::map<std::string, double> parameters;
+  std::map<std::string, double> parameters;  ///< every value finite
+  /// Where the entry came from, for errors, e.g. "/s/session.yaml: cameras.thermal.radiometry"
+  /// (empty when built in code).
+  std::string source;
 };
 
 struct CameraEntry {
@@ -66,12 +76,29 @@ struct MappingSession {
   std::string trajectory;  ///< optional CSV of the cart trajectory (absolute), or empty
 };
 
+/// True for names usable as file names: 1 to 64 characters of [A-Za-z0-9_-].
+bool is_valid_camera_name(const std::string& name);
+
 /// Reads a calibration session from a session.yaml file or the folder that holds it.
-/// Throws rgbdt::core::Error naming the file, the key and what was expected.
+/// Throws rgbdt::core::Error naming the file, the key, the value and what was expected.
 CalibrationSession read_calibration_session(const std::string& path);
+/// Parses session.yaml text as if read from `yaml_path` (which need not exist); relative
+/// paths resolve against its folder.
+CalibrationSession parse_calibration_session(const std::string& yaml_text, const std::string& yaml_path);
+/// Writes atomically (rgbdt/core/output.hpp); throws rgbdt::core::Error naming the path.
 void write_calibration_session(const std::string& yaml_path, const CalibrationSession& session);
 
+/// A mapping session may have no cameras (a LIDAR-only map): `cameras` may be absent or empty.
 MappingSession read_mapping_session(const std::string& path);
+MappingSession parse_mapping_session(const std::string& yaml_text, const std::string& yaml_path);
 void write_mapping_session(const std::string& yaml_path, const MappingSession& session);
+
+/// Every problem with the files a session names, all at once (empty when none): missing
+/// files, folders or empty files where files are expected, camera_info, tilt_rig and time
+/// index files that do not read, index rows naming missing files, a cloud index without
+/// rows. Each entry names the path, the session key that names it and what was expected;
+/// no entry quotes the content of a file. Apps print them all before the long work.
+std::vector<std::string> preflight_problems(const CalibrationSession& session);
+std::vector<std::string> preflight_problems(const MappingSession& session);
 
 }  // namespace rgbdt::core

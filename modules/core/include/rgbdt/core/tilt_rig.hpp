@@ -73,9 +73,15 @@ struct TiltRig {
   }
 };
 
-/// Reads tilt_rig.yaml; missing sections keep their defaults. Throws rgbdt::core::Error
-/// naming the file, the key and what was expected.
+/// Reads tilt_rig.yaml; missing sections keep their defaults. Every number must be finite
+/// and physical (beams in [2, 100000], aperture in (0, 360] deg, scan period in (0, 10] s,
+/// ranges in [0, 1000] m and increasing, counts per revolution in [1, 1e9], mount offset
+/// within 10 m). Throws rgbdt::core::Error naming the file, the key path, the value and what
+/// was expected.
 TiltRig read_tilt_rig(const std::string& path);
+/// Parses tilt_rig.yaml text; `source` names it in errors.
+TiltRig parse_tilt_rig(const std::string& yaml_text, const std::string& source);
+/// Writes atomically (rgbdt/core/output.hpp); throws rgbdt::core::Error naming the path.
 void write_tilt_rig(const std::string& path, const TiltRig& rig);
 
 }  // namespace rgbdt::core

@@ -20,6 +20,12 @@
 ///   {type: linear, kelvin_per_count: 0.04, offset_k: 0.0}
 ///   {type: planck, R: 366545, B: 1428, F: 1, O: -342, emissivity: 0.95, reflected_k: 293.15}
 /// emissivity defaults to 1 and reflected_k to 293.15 K when absent.
+///
+/// Ranges: kelvin_per_count in (0, 1] K/count and offset_k in [0, 10000] K, so that every
+/// 16-bit count maps to a finite temperature >= 0 K (0 counts may map to 0 K, the TLinear
+/// default); a Planck map gives every count either no temperature (NaN, outside the curve)
+/// or a finite one > 0 K. Errors from a session's entry name its file and key path
+/// (core::RadiometrySpec::source), the parameter and its value.
 #include <cstdint>
 #include <string>
 #include <vector>
