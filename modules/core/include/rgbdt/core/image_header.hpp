@@ -7,12 +7,13 @@
 #include <cstdint>
 #include <string>
 
+#include "rgbdt/core/camera.hpp"
+
 namespace rgbdt::core {
 
-/// Largest accepted width and height, and the largest decoded size (width x height x
-/// channels x bytes per sample). Far above any camera of a rig; a header beyond them is
-/// corrupt or hostile.
-constexpr int kMaxImageSide = 20000;
+/// Largest decoded size (width x height x channels x bytes per sample); the largest width
+/// and height is kMaxImageSide (camera.hpp), shared with the camera_info reader. Far above
+/// any camera of a rig; a header beyond them is corrupt or hostile.
 constexpr std::uint64_t kMaxImageBytes = std::uint64_t{1} << 30;
 
 struct ImageHeader {
