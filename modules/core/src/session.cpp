@@ -110,7 +110,15 @@ std::map<std::string, CameraEntry> read_cameras(const YamlField& root, const Whe
     entry_node.expect_map(mapping ? "{intrinsics: file.yaml, frames: index.csv}" : "{intrinsics: file.yaml}");
     CameraEntry entry;
     entry.intrinsics = path_key(entry_node, "intrinsics", w, "a camera_info YAML file");
-    if (mapping) entry.frames = path_key(entry_node, "frames", w, "a CSV time index file (time_s,file)");
+    // A camera of a mapping session may have recorded nothing: `frames: ""` (what
+    // `rgbdt_sim mapping --no-images` writes) keeps it with an empty frames path, and it
+    // colours nothing. A missing key is still an error: the contract names the index.
+    if (mapping) {
+      const YamlField frames = entry_node.at("frames", "a CSV time index file (time_s,file)");
+      if (!frames.as_string("a CSV time index file (time_s,file) or \"\"", true).empty()) {
+        entry.frames = path_value(frames, w, "a CSV time index file (time_s,file)");
+      }
+    }
     if (const auto r = entry_node.find("radiometry")) entry.radiometry = read_radiometry(*r);
     cameras[name] = entry;
   }
@@ -228,7 +236,7 @@ void emit_cameras(YAML::Emitter& out, const std::map<std::string, CameraEntry>& 
   for (const auto& [name, cam] : cameras) {
     out << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap;
     out << YAML::Key << "intrinsics" << YAML::Value << relative_to(dir, cam.intrinsics);
-    if (frames) out << YAML::Key << "frames" << YAML::Value << relative_to(dir, cam.frames);
+    if (frames) out << YAML::Key << "frames" << YAML::Value << (cam.frames.empty() ? std::string() : relative_to(dir, cam.frames));
     if (cam.radiometry) {
       out << YAML::Key << "radiometry" << YAML::Value << YAML::Flow << YAML::BeginMap;
       out << YAML::Key << "type" << YAML::Value << cam.radiometry->type;
@@ -311,7 +319,7 @@ void check_cameras(const std::map<std::string, CameraEntry>& cameras, bool mappi
         problems.push_back(std::string(e.what()) + " (named by " + key + ".intrinsics)");
       }
     }
-    if (mapping) check_index(cam.frames, key + ".frames", "image (PNG)", false, problems);
+    if (mapping && !cam.frames.empty()) check_index(cam.frames, key + ".frames", "image (PNG)", false, problems);
   }
 }
 

@@ -138,6 +138,19 @@ TEST(Session, MappingSessionNeedsALidarStream) {
   expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); }, {"cameras.rgb", "frames"});
 }
 
+// `frames: ""` is a camera that recorded nothing (rgbdt_sim mapping --no-images): kept,
+// with an empty frames path, and written back the same way.
+TEST(Session, MappingCameraWithEmptyFramesRecordedNothing) {
+  const auto dir = rgbdt::test::temp_dir("no_frames");
+  write_text(dir / "session.yaml", "lidar: {rawlog: a.rawlog}\ncameras: {rgb: {intrinsics: a.yaml, frames: \"\"}}\n");
+  const MappingSession s = read_mapping_session(dir.string());
+  ASSERT_EQ(s.cameras.count("rgb"), 1u);
+  EXPECT_TRUE(s.cameras.at("rgb").frames.empty());
+  write_mapping_session((dir / "copy.yaml").string(), s);
+  std::filesystem::rename(dir / "copy.yaml", dir / "session.yaml");
+  EXPECT_TRUE(read_mapping_session(dir.string()).cameras.at("rgb").frames.empty());
+}
+
 namespace {
 const std::string kViews = "views: [{cloud: a.pcd, images: {rgb: a.png}}]\n";
 const std::string kRgb = "cameras: {rgb: {intrinsics: a.yaml}}\n";

@@ -45,7 +45,7 @@ struct RadiometrySpec {
 
 struct CameraEntry {
   std::string intrinsics;  ///< absolute path of the camera_info YAML
-  std::string frames;      ///< absolute path of the frame index CSV (mapping sessions)
+  std::string frames;      ///< absolute path of the frame index CSV (mapping sessions); empty: no frames
   std::optional<RadiometrySpec> radiometry;
 };
 
