@@ -19,6 +19,7 @@
 #include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/core/output.hpp"
+#include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/extrinsics/edge_alignment.hpp"
 #include "rgbdt/extrinsics/report.hpp"
@@ -36,14 +37,14 @@ std::map<std::string, Eigen::Isometry3d> read_ground_truth(const std::string& se
   std::map<std::string, Eigen::Isometry3d> out;
   const fs::path path = fs::path(session_dir) / "ground_truth.yaml";
   if (!fs::exists(path)) return out;
-  const YAML::Node root = YAML::LoadFile(path.string());
-  if (!root["extrinsics"]) return out;
-  for (const auto& entry : root["extrinsics"]) {
+  const core::YamlField root(core::load_yaml_file(path.string()), path.string());
+  const std::optional<core::YamlField> extrinsics = root.find("extrinsics");
+  if (!extrinsics) return out;
+  for (const auto& [name, entry] : extrinsics->entries("a mapping of camera name to extrinsics")) {
     YAML::Emitter em;
-    em << entry.second;
-    const core::Extrinsics e = core::parse_extrinsics(em.c_str(), path.string() + ": extrinsics." +
-                                                                      entry.first.as<std::string>());
-    out[entry.first.as<std::string>()] = e.T_parent_child;
+    em << entry.node();
+    const core::Extrinsics e = core::parse_extrinsics(em.c_str(), path.string() + ": extrinsics." + name);
+    out[name] = e.T_parent_child;
   }
   return out;
 }

@@ -56,6 +56,7 @@
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/core/transform.hpp"
+#include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/rgbdt_map/colorize.hpp"
 #include "rgbdt/rgbdt_map/export.hpp"
 #include "rgbdt/rgbdt_map/registration.hpp"
@@ -177,19 +178,24 @@ class BeamTemperatureTruth {
   static std::optional<BeamTemperatureTruth> load(const std::string& session_dir) {
     const fs::path yaml = fs::path(session_dir) / "ground_truth.yaml";
     if (!fs::exists(yaml)) return std::nullopt;
-    const YAML::Node node = YAML::LoadFile(yaml.string())["beam_temperature"];
+    const core::YamlField root(core::load_yaml_file(yaml.string()), yaml.string());
+    const std::optional<core::YamlField> node = root.find("beam_temperature");
     if (!node) return std::nullopt;
     BeamTemperatureTruth truth;
-    fs::path image = node["image"].as<std::string>();
+    fs::path image = node->at("image", "a 16-bit PNG of beam temperatures").as_string("a file path");
     if (image.is_relative()) image = fs::path(session_dir) / image;
+    (void)core::read_image_header(image.string());  // refuses a size too large to decode
     truth.units_ = cv::imread(image.string(), cv::IMREAD_UNCHANGED);
     if (truth.units_.type() != CV_16UC1) {
       throw core::Error(image.string(), "expected a 16-bit single-channel PNG of beam temperatures");
     }
-    truth.kelvin_per_unit_ = node["kelvin_per_unit"].as<double>();
-    truth.first_scan_s_ = node["first_scan_time_s"].as<double>();
-    truth.scan_period_s_ = node["scan_period_s"].as<double>();
-    truth.beam_period_s_ = truth.scan_period_s_ / node["steps_per_revolution"].as<int>();
+    truth.kelvin_per_unit_ =
+        node->at("kelvin_per_unit", "kelvin per image unit").as_double_in(1e-9, 1.0, "kelvin per image unit in (0, 1]");
+    truth.first_scan_s_ = node->at("first_scan_time_s", "a time [s]").as_double();
+    truth.scan_period_s_ = node->at("scan_period_s", "a scan period [s]").as_double_in(1e-4, 10.0, "a scan period in [1e-4, 10] s");
+    truth.beam_period_s_ =
+        truth.scan_period_s_ /
+        static_cast<double>(node->at("steps_per_revolution", "steps per revolution").as_integer(1, 1 << 20, "steps per revolution in 1..2^20"));
     return truth;
   }
   /// True temperature [K] of the beam measured at time_s, NaN if unknown.
@@ -246,9 +252,10 @@ struct ThermalErrors {
 std::optional<Trajectory> ground_truth_trajectory(const std::string& session_dir) {
   const fs::path yaml = fs::path(session_dir) / "ground_truth.yaml";
   if (!fs::exists(yaml)) return std::nullopt;
-  const YAML::Node root = YAML::LoadFile(yaml.string());
-  if (!root["trajectory"]) return std::nullopt;
-  fs::path csv = root["trajectory"].as<std::string>();
+  const core::YamlField root(core::load_yaml_file(yaml.string()), yaml.string());
+  const std::optional<core::YamlField> trajectory = root.find("trajectory");
+  if (!trajectory) return std::nullopt;
+  fs::path csv = trajectory->as_string("a CSV file of the true trajectory");
   if (csv.is_relative()) csv = fs::path(session_dir) / csv;
   return read_trajectory_csv(csv.string());
 }
