@@ -97,7 +97,8 @@ int run_report(const Options& o) {
   error_model::ErrorSources sources;
   sources.intrinsics = core::read_camera_info(o.intrinsics);
   const std::string extrinsics_path = find_extrinsics(o.calib, o.camera, sources.intrinsics.camera_name);
-  const core::Extrinsics extrinsics = core::read_extrinsics(extrinsics_path);
+  // The camera of the file found is its parent_frame (the reader puts the camera first).
+  const core::Extrinsics extrinsics = core::read_extrinsics(extrinsics_path, core::ExtrinsicsFrames{});
   sources.T_camera_lidar = extrinsics.T_parent_child;
   apps::ReportSettings settings;
   settings.camera_name = o.camera.empty() ? sources.intrinsics.camera_name : o.camera;

@@ -185,18 +185,21 @@ SetupSession read_setup_session(const std::string& path) {
   } else {
     // Calibration layout: one entry per placement with its cloud and images.
     const fs::path dir(s.directory);
-    const YAML::Node cameras = core::require_key(root, "cameras", src, "a map camera -> {intrinsics: file.yaml}");
-    for (const auto& kv : cameras) {
-      const std::string name = kv.first.as<std::string>();
-      s.intrinsics[name] = resolve(dir, core::require_string(kv.second, "intrinsics", src + " (cameras." + name + ")"));
+    const core::YamlField fields(root, src);
+    const std::string camera_map = "a map camera -> {intrinsics: file.yaml}";
+    for (const auto& [name, entry] : fields.at("cameras", camera_map).entries(camera_map)) {
+      s.intrinsics[name] = resolve(dir, entry.at("intrinsics", "a camera_info YAML file").as_string("a file path"));
     }
-    for (std::size_t i = 0; i < root["views"].size(); ++i) {
-      const YAML::Node v = root["views"][i];
-      const std::string ctx = src + " (views[" + std::to_string(i) + "])";
+    const core::YamlField views = fields.at("views", "a list of placements");
+    const std::size_t n = views.expect_sequence("a list of {cloud: file.pcd, images: {camera: image.png}}");
+    for (std::size_t i = 0; i < n; ++i) {
+      const core::YamlField v = views.item(i);
       SetupView view;
-      view.cloud = resolve(dir, core::require_string(v, "cloud", ctx));
-      const YAML::Node images = core::require_key(v, "images", ctx, "a map camera -> image.png");
-      for (const auto& kv : images) view.images[kv.first.as<std::string>()] = resolve(dir, kv.second.as<std::string>());
+      view.cloud = resolve(dir, v.at("cloud", "a PCD or PLY file").as_string("a file path"));
+      const std::string image_map = "a map camera -> image.png";
+      for (const auto& [name, image] : v.at("images", image_map).entries(image_map)) {
+        view.images[name] = resolve(dir, image.as_string("a file path"));
+      }
       s.views.push_back(view);
     }
   }
@@ -222,14 +225,14 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
       std::cerr << "skipping camera " << camera_name << ": " << extrinsics_path.string() << " does not exist\n";
       continue;
     }
-    core::Extrinsics extrinsics = core::read_extrinsics(extrinsics_path.string());
+    core::Extrinsics extrinsics = core::read_extrinsics(extrinsics_path.string(), core::ExtrinsicsFrames{camera_name});
     if (settings.extrinsics_covariance) extrinsics.covariance = *settings.extrinsics_covariance;
     if (settings.extrinsics_offset) extrinsics.T_parent_child = core::from_vector6(*settings.extrinsics_offset) * extrinsics.T_parent_child;
     const core::CameraIntrinsics intrinsics = core::read_camera_info(session.intrinsics.at(camera_name));
     const core::PinholeCamera camera(intrinsics);
     std::optional<core::Extrinsics> truth;
     const fs::path truth_path = fs::path(session.directory) / "true_calib" / ("extrinsics_" + camera_name + ".yaml");
-    if (fs::exists(truth_path)) truth = core::read_extrinsics(truth_path.string());
+    if (fs::exists(truth_path)) truth = core::read_extrinsics(truth_path.string(), core::ExtrinsicsFrames{camera_name});
     std::optional<core::PinholeCamera> true_camera;
     const fs::path true_intrinsics = fs::path(session.directory) / "true_calib" / (camera_name + ".yaml");
     if (truth) true_camera.emplace(fs::exists(true_intrinsics) ? core::read_camera_info(true_intrinsics.string()) : intrinsics);

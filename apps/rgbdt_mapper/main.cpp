@@ -456,7 +456,8 @@ int main(int argc, char** argv) {
       const fs::path extrinsics_path = fs::path(calib_dir) / ("extrinsics_" + name + ".yaml");
       std::optional<Eigen::Isometry3d> T_camera_lidar;
       try {
-        const Eigen::Isometry3d T = core::read_extrinsics(extrinsics_path.string()).T_parent_child;
+        const Eigen::Isometry3d T =
+            core::read_extrinsics(extrinsics_path.string(), core::ExtrinsicsFrames{name}).T_parent_child;
         if (!T.matrix().allFinite()) {
           preflight.add(extrinsics_path.string(), "camera '" + name +
                                                       "': the transform has non-finite values (nan or inf), "

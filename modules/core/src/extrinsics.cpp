@@ -109,6 +109,12 @@ Extrinsics with_camera_parent(Extrinsics e, const ExtrinsicsFrames& frames) {
 
 Extrinsics camera_lidar(const Extrinsics& literal, const std::string& source,
                         const ExtrinsicsFrames& frames) {
+  // When the camera is known, its name decides the direction whatever the LIDAR's frame is
+  // called (livox_frame, os_sensor, ...): the other frame is the LIDAR.
+  if (!frames.camera.empty() && literal.parent_frame != literal.child_frame) {
+    if (literal.parent_frame == frames.camera && !is_lidar_frame(literal.parent_frame, frames)) return literal;
+    if (literal.child_frame == frames.camera && !is_lidar_frame(literal.child_frame, frames)) return inverted(literal);
+  }
   const Extrinsics e = with_camera_parent(literal, frames);
   const bool lidar_child = is_lidar_frame(e.child_frame, frames);
   const bool camera_parent = !is_lidar_frame(e.parent_frame, frames) &&

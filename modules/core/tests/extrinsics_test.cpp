@@ -133,6 +133,12 @@ TEST(ExtrinsicsYaml, FramesMustBeTheLidarAndTheExpectedCamera) {
                                {"e.yaml", "'foo'", "'bar'", "LIDAR frame"});
   expect_error_mentions<Error>([&] { parse_extrinsics(pose_yaml("lidar", "laser", "[0, 0, 0]", q), "e.yaml", {}); },
                                {"e.yaml", "'lidar'", "'laser'"});
+  // With the camera known, the other frame is the LIDAR whatever its name, in either order.
+  EXPECT_EQ(parse_extrinsics(pose_yaml("rgb", "livox_frame", "[0.1, 0, 0]", q), "e.yaml", {"rgb"}).child_frame,
+            "livox_frame");
+  const Extrinsics swapped = parse_extrinsics(pose_yaml("os_sensor", "rgb", "[0.1, 0, 0]", q), "e.yaml", {"rgb"});
+  EXPECT_EQ(swapped.parent_frame, "rgb");
+  EXPECT_NEAR(swapped.T_parent_child.translation().x(), -0.1, 1e-12);
   // A camera-to-camera file is still readable without expectations.
   EXPECT_EQ(parse_extrinsics(pose_yaml("thermal", "rgb", "[0, 0, 0]", q), "e.yaml").parent_frame, "thermal");
 }

@@ -55,8 +55,10 @@ bool is_lidar_frame(const std::string& frame, const ExtrinsicsFrames& frames = {
 Extrinsics read_extrinsics(const std::string& path);
 Extrinsics parse_extrinsics(const std::string& yaml_text, const std::string& source);
 /// Reads a camera-LIDAR file and returns T_camera_lidar (parent_frame = the camera,
-/// child_frame = the LIDAR frame), inverting a file that stores T_lidar_camera. Refuses a
-/// file whose frames are not one LIDAR frame and the expected camera.
+/// child_frame = the LIDAR frame), inverting a file that stores T_lidar_camera. With
+/// frames.camera set, a file naming that camera as one frame takes the other as the LIDAR,
+/// whatever it is called; otherwise the LIDAR frame must be one of frames.lidar. Refuses a
+/// file whose frames are not the LIDAR and the expected camera.
 Extrinsics read_extrinsics(const std::string& path, const ExtrinsicsFrames& frames);
 Extrinsics parse_extrinsics(const std::string& yaml_text, const std::string& source,
                             const ExtrinsicsFrames& frames);
