@@ -45,13 +45,20 @@ endfunction()
 
 # rgbdt_add_tests(<module> file_test.cpp ... [LIBS ...] [LABELS ...])
 # One GoogleTest executable per file, named after the file, registered with CTest and
-# labelled with the module's name and LABELS. The label `slow` marks tests that take
-# minutes in Release: CI runs them once, in Release, not again under the sanitizers.
+# labelled <module>, or <module>_<label>... with LABELS (one token: gtest_discover_tests
+# writes its properties unquoted, so a list would split). ctest's -L and -LE take regular
+# expressions, so `-L calib_targets` still selects calib_targets_slow. `slow` marks tests
+# that take minutes in Release: CI runs them once, in Release, not again under the
+# sanitizers.
 function(rgbdt_add_tests module)
   if(NOT RGBDT_BUILD_TESTS)
     return()
   endif()
   cmake_parse_arguments(ARG "" "" "LIBS;LABELS" ${ARGN})
+  set(label ${module})
+  foreach(extra IN LISTS ARG_LABELS)
+    string(APPEND label "_${extra}")
+  endforeach()
   foreach(file IN LISTS ARG_UNPARSED_ARGUMENTS)
     get_filename_component(test_name ${file} NAME_WE)
     add_executable(${test_name} ${file})
@@ -64,7 +71,7 @@ function(rgbdt_add_tests module)
       RGBDT_BINARY_DIR="${PROJECT_BINARY_DIR}")
     rgbdt_apply_standard(${test_name})
     gtest_discover_tests(${test_name} DISCOVERY_TIMEOUT 60
-      PROPERTIES LABELS "${module};${ARG_LABELS}" ENVIRONMENT "RGBDT_BIN_DIR=${PROJECT_BINARY_DIR}/bin")
+      PROPERTIES LABELS ${label} ENVIRONMENT "RGBDT_BIN_DIR=${PROJECT_BINARY_DIR}/bin")
   endforeach()
 endfunction()
 
