@@ -43,6 +43,21 @@ function(rgbdt_add_module name)
   set_property(GLOBAL APPEND PROPERTY RGBDT_INSTALLED_MODULES ${name})
 endfunction()
 
+# rgbdt_use_test_support(<target>): the helpers every test shares (tests/support: rgbdt/test/
+# test_util.hpp, process.hpp) and the folders a test uses (RGBDT_SOURCE_DIR, RGBDT_BINARY_DIR,
+# RGBDT_SHARED_DATA_DIR). The folders come from one generated library, not from -D flags, so
+# that the tests' object files are the same in every clone and ccache reuses them.
+function(rgbdt_use_test_support target)
+  if(NOT TARGET rgbdt_test_paths)
+    configure_file(${PROJECT_SOURCE_DIR}/cmake/test_paths.cpp.in ${PROJECT_BINARY_DIR}/rgbdt_test_paths.cpp @ONLY)
+    add_library(rgbdt_test_paths STATIC ${PROJECT_BINARY_DIR}/rgbdt_test_paths.cpp)
+    rgbdt_apply_standard(rgbdt_test_paths)
+  endif()
+  target_link_libraries(${target} PRIVATE rgbdt_test_paths)
+  target_include_directories(${target} PRIVATE ${PROJECT_SOURCE_DIR}/tests/support)
+  target_compile_options(${target} PRIVATE -include ${PROJECT_SOURCE_DIR}/tests/support/rgbdt/test/paths.hpp)
+endfunction()
+
 # rgbdt_add_tests(<module> file_test.cpp ... [LIBS ...] [LABELS ...])
 # One GoogleTest executable per file, named after the file, registered with CTest and
 # labelled <module>, or <module>_<label>... with LABELS (one token: gtest_discover_tests
@@ -63,12 +78,7 @@ function(rgbdt_add_tests module)
     get_filename_component(test_name ${file} NAME_WE)
     add_executable(${test_name} ${file})
     target_link_libraries(${test_name} PRIVATE rgbdt::${module} ${ARG_LIBS} GTest::gtest_main GTest::gmock)
-    # Helpers every module's tests share (rgbdt/test/test_util.hpp).
-    target_include_directories(${test_name} PRIVATE ${PROJECT_SOURCE_DIR}/tests/support)
-    target_compile_definitions(${test_name} PRIVATE
-      RGBDT_SHARED_DATA_DIR="${RGBDT_SHARED_DATA_DIR}"
-      RGBDT_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
-      RGBDT_BINARY_DIR="${PROJECT_BINARY_DIR}")
+    rgbdt_use_test_support(${test_name})
     rgbdt_apply_standard(${test_name})
     gtest_discover_tests(${test_name} DISCOVERY_TIMEOUT 60
       PROPERTIES LABELS ${label} ENVIRONMENT "RGBDT_BIN_DIR=${PROJECT_BINARY_DIR}/bin")
@@ -86,7 +96,6 @@ function(rgbdt_add_benchmark name)
   if(TARGET CLI11::CLI11)  # the bench programs that take options parse them as the apps do
     target_link_libraries(${name} PRIVATE CLI11::CLI11)
   endif()
-  target_compile_definitions(${name} PRIVATE RGBDT_SHARED_DATA_DIR="${RGBDT_SHARED_DATA_DIR}")
   rgbdt_apply_standard(${name})
 endfunction()
 

@@ -30,7 +30,7 @@ using rgbdt::test::temp_dir;
 
 std::string app_path() {
   const char* bin = std::getenv("RGBDT_BIN_DIR");
-  return (fs::path(bin ? bin : RGBDT_BINARY_DIR "/bin") / "rgbdt_coloring_error").string();
+  return ((bin ? fs::path(bin) : fs::path(RGBDT_BINARY_DIR) / "bin") / "rgbdt_coloring_error").string();
 }
 
 /// Table rows "| depth | x | y | predicted x | predicted y | expected x | expected y | ..."

@@ -17,7 +17,7 @@ namespace rgbdt::test {
 /// <build>/bin/<name>, or $RGBDT_BIN_DIR/<name> (ctest sets it for every test).
 inline std::string built_program(const std::string& name) {
   const char* dir = std::getenv("RGBDT_BIN_DIR");
-  return std::string(dir != nullptr ? dir : RGBDT_BINARY_DIR "/bin") + "/" + name;
+  return (dir != nullptr ? std::string(dir) : std::string(RGBDT_BINARY_DIR) + "/bin") + "/" + name;
 }
 
 /// Starts `program args...` with stdout and stderr in `log`; returns the pid (a failed
