@@ -2,9 +2,9 @@
 // a FLIR Tau2 over its serial channel.
 #include <CLI/CLI.hpp>
 
-#include <atomic>
+#include <cmath>
 #include <chrono>
-#include <csignal>
+#include <filesystem>
 #include <cstdio>
 #include <iostream>
 #include <map>
@@ -12,32 +12,18 @@
 #include <thread>
 
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/thermal_camera/frame_recorder.hpp"
 #include "rgbdt/thermal_camera/genicam_camera.hpp"
 #include "rgbdt/thermal_camera/tau2.hpp"
 
 namespace tc = rgbdt::thermal_camera;
+namespace core = rgbdt::core;
+namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 namespace {
-
-std::atomic<bool> g_stop{false};
-std::atomic<int> g_signal{0};
-
-extern "C" void on_signal(int signal_number) {
-  g_signal.store(signal_number);
-  g_stop.store(true);
-}
-
-void install_signal_handlers() {
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigemptyset(&sa.sa_mask);
-  sa.sa_flags = 0;  // no SA_RESTART: blocking waits return early
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-}
 
 tc::InterfaceSelection parse_interfaces(const std::string& list) {
   tc::InterfaceSelection s{false, false, false};
@@ -93,12 +79,48 @@ struct RecordArgs {
   int png_compression = 1;
 };
 
+// Every problem of the record arguments at once, each naming its option and value; empty
+// when they are usable. Checked before the camera is opened or anything is written.
+std::string record_problems(const RecordArgs& a) {
+  std::ostringstream why;
+  const auto finite_non_negative = [&](const char* option, double v, const char* zero_means) {
+    if (!(std::isfinite(v) && v >= 0.0)) {
+      why << "\n  " << option << " " << v << ": expected a finite value >= 0 (0: " << zero_means
+          << ")";
+    }
+  };
+  finite_non_negative("--rate", a.rate_hz, "keep the camera's");
+  finite_non_negative("--exposure", a.exposure_us, "keep the camera's");
+  finite_non_negative("--give-up", a.give_up_s, "never");
+  if (a.timeout_ms < 1) why << "\n  --timeout-ms " << a.timeout_ms << ": expected >= 1";
+  if (!a.roi.empty()) {
+    if (a.roi.size() != 4) {
+      why << "\n  --roi: " << a.roi.size() << " values, expected x,y,width,height";
+    } else if (a.roi[0] < 0 || a.roi[1] < 0 || a.roi[2] < 0 || a.roi[3] < 0) {
+      why << "\n  --roi " << a.roi[0] << "," << a.roi[1] << "," << a.roi[2] << "," << a.roi[3]
+          << ": expected values >= 0 (width, height 0: up to the sensor edge)";
+    }
+  }
+  if (a.id.empty()) why << "\n  --id is empty, expected a camera id from `list` or an address";
+  std::error_code ec;
+  if (a.out.empty()) {
+    why << "\n  --out is empty, expected a folder for the recording";
+  } else if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec)) {
+    why << "\n  --out " << a.out << ": exists and is not a folder";
+  } else if (fs::exists(fs::path(a.out) / "index.csv", ec)) {
+    why << "\n  --out " << a.out << ": holds a recording (index.csv); choose an empty folder";
+  }
+  return why.str();
+}
+
 int run_record(const RecordArgs& a) {
+  if (const std::string why = record_problems(a); !why.empty()) {
+    throw std::invalid_argument("record: bad arguments, nothing was recorded:" + why);
+  }
   tc::select_interfaces(parse_interfaces(a.interfaces));
   tc::GenicamOptions options;
   options.pixel_format = a.pixel_format;
   if (!a.roi.empty()) {
-    if (a.roi.size() != 4) throw std::invalid_argument("--roi takes x,y,width,height");
     options.region = tc::Region{a.roi[0], a.roi[1], a.roi[2], a.roi[3]};
   }
   options.frame_rate_hz = a.rate_hz;
@@ -116,16 +138,17 @@ int run_record(const RecordArgs& a) {
   ro.png_compression = a.png_compression;
   tc::FrameRecorder recorder(ro);
 
-  install_signal_handlers();
+  core::install_interrupt_handler();
   camera.start();
   const auto t_start = Clock::now();
   auto t_report = t_start;
   auto t_lost = Clock::time_point{};
   bool lost = false;
   int exit_code = 0;
+  bool gave_up = false;
   std::string last_status = "streaming";
   std::string last_message;  // status lines are printed when they change
-  while (!g_stop.load()) {
+  while (!core::interrupted() && !gave_up) {
     const double elapsed_s = std::chrono::duration<double>(Clock::now() - t_start).count();
     if (a.seconds > 0 && elapsed_s >= a.seconds) break;
     if (a.frames > 0 && static_cast<long>(recorder.frames_written()) >= a.frames) break;
@@ -154,7 +177,7 @@ int run_record(const RecordArgs& a) {
           std::cerr << "error: camera " << a.id << " did not come back within " << a.give_up_s
                     << " s\n";
           exit_code = 3;
-          g_stop.store(true);
+          gave_up = true;
         }
         break;
       case tc::GrabStatus::kReconnected:
@@ -186,9 +209,11 @@ int run_record(const RecordArgs& a) {
             << "lost " << s.frames_lost << ", incomplete " << s.frames_incomplete << ", timeouts "
             << s.timeouts << ", disconnects " << s.disconnects << ", reconnects " << s.reconnects
             << "\n";
-  if (g_signal.load() != 0) std::cout << "stopped by signal " << g_signal.load() << "\n";
+  if (core::interrupted()) std::cout << "stopped by signal " << core::interrupt_signal() << "\n";
   if (exit_code == 0 && a.frames > 0 && static_cast<long>(recorder.frames_written()) < a.frames &&
-      g_signal.load() == 0) {
+      !core::interrupted()) {
+    std::cerr << "error: recorded " << recorder.frames_written() << " of the " << a.frames
+              << " frames asked for with --frames\n";
     exit_code = 1;
   }
   return exit_code;
@@ -206,6 +231,10 @@ struct Tau2Args {
 };
 
 int run_tau2(const Tau2Args& a) {
+  if (a.baud <= 0) {
+    throw std::invalid_argument("tau2: --baud " + std::to_string(a.baud) +
+                                ": expected a positive baud rate (the Tau2 uses 57600 or 921600)");
+  }
   std::unique_ptr<tc::SerialTransport> transport;
   if (a.usb) {
     tc::FtdiUsbOptions o;
@@ -213,7 +242,7 @@ int run_tau2(const Tau2Args& a) {
     o.baud = a.baud;
     transport = std::make_unique<tc::FtdiUsbTransport>(o);
   } else {
-    if (a.port.empty()) throw std::invalid_argument("give --port DEVICE or --usb");
+    if (a.port.empty()) throw std::invalid_argument("tau2: give --port DEVICE or --usb");
     transport = std::make_unique<tc::TermiosTransport>(a.port, a.baud);
   }
   tc::Tau2 camera(std::move(transport));
@@ -252,9 +281,9 @@ int run_tau2(const Tau2Args& a) {
 
 int run_tau2_emulate() {
   tc::Tau2PtyEmulator emulator;
-  install_signal_handlers();
+  core::install_interrupt_handler();
   std::cout << "emulated Tau2 on " << emulator.path() << " (Ctrl-C to stop)" << std::endl;
-  while (!g_stop.load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  while (!core::interrupted()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
   std::cout << "served "
             << emulator.with_emulator([](tc::Tau2Emulator& e) { return e.state().ffc_count; })
             << " FFC command(s)\n";
@@ -340,7 +369,7 @@ int main(int argc, char** argv) {
     if (*emulate) return run_tau2_emulate();
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
-    return 2;
+    return 1;
   }
   return 0;
 }

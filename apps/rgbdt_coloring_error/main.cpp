@@ -25,6 +25,8 @@ using namespace rgbdt;
 namespace {
 
 constexpr double kDeg = M_PI / 180.0;
+constexpr double kMaxTableRows = 10000;
+constexpr int kMaxMonteCarlo = 1000000;
 
 struct Options {
   // Paper mode.
@@ -42,6 +44,46 @@ std::string number(double v, int decimals = 6) {
   char buf[64];
   std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
   return buf;
+}
+
+// Every problem of the numeric options at once, each naming its option and value; empty
+// when all are usable. Non-finite values would otherwise reach the model as NaN
+// covariances, and an unbounded depth range would fill memory with table rows.
+std::string option_problems(const Options& o) {
+  std::ostringstream why;
+  const auto check = [&](const char* option, double v, bool non_negative) {
+    if (!std::isfinite(v)) {
+      why << "\n  " << option << " " << v << ": expected a finite number";
+    } else if (non_negative && v < 0.0) {
+      why << "\n  " << option << " " << v << ": expected a standard deviation >= 0";
+    }
+  };
+  const auto check_all = [&](const char* option, const std::vector<double>& values, bool non_negative) {
+    for (double v : values) check(option, v, non_negative);
+  };
+  check("--fx", o.fx, false);
+  check("--fx-error", o.fx_error, false);
+  check("--x", o.x_m, false);
+  check("--lidar-noise", o.lidar_noise_m, true);
+  check("--beam-sigma-deg", o.beam_sigma_deg, true);
+  check("--tilt-sigma-deg", o.tilt_sigma_deg, true);
+  check_all("--intrinsics-sigma", o.intrinsics_sigma, true);
+  check_all("--rotation-sigma-deg", o.rotation_sigma_deg, true);
+  check_all("--translation-sigma-m", o.translation_sigma_m, true);
+  check_all("--what-if-error", o.what_if, false);
+  check_all("--pixel", o.pixel, false);
+  if (!(std::isfinite(o.depth_min) && std::isfinite(o.depth_max) && std::isfinite(o.depth_step) && o.depth_min > 0.0 &&
+        o.depth_max > o.depth_min && o.depth_step > 0.0)) {
+    why << "\n  --depth-min " << o.depth_min << " --depth-max " << o.depth_max << " --depth-step " << o.depth_step
+        << ": expected finite 0 < min < max and step > 0";
+  } else if ((o.depth_max - o.depth_min) / o.depth_step > kMaxTableRows) {
+    why << "\n  --depth-step " << o.depth_step << ": gives more than " << kMaxTableRows
+        << " table rows between --depth-min and --depth-max";
+  }
+  if (o.monte_carlo < 0 || o.monte_carlo > kMaxMonteCarlo) {
+    why << "\n  --monte-carlo " << o.monte_carlo << ": expected 0 (none) to " << kMaxMonteCarlo << " samples";
+  }
+  return why.str();
 }
 
 int run_paper(const Options& o, bool has_fx_error) {
@@ -231,6 +273,9 @@ int main(int argc, char** argv) {
   core::set_log_sink(core::stderr_log_sink);
   if (verbose) core::set_log_level(core::LogLevel::kDebug);
   try {
+    if (const std::string why = option_problems(o); !why.empty()) {
+      throw std::invalid_argument("bad options, nothing was computed:" + why);
+    }
     const bool paper = fx->count() > 0;
     const bool setup_mode = setup->count() > 0;
     const bool report_mode = !setup_mode && (calib->count() > 0 || intrinsics->count() > 0 || report->count() > 0);

@@ -9,6 +9,7 @@
 
 #include "plot.hpp"
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/output.hpp"
 #include "rgbdt/error_model/paper_analysis.hpp"
 
 namespace rgbdt::apps {
@@ -121,9 +122,7 @@ ReportFiles write_report(const std::string& dir, const error_model::ColoringErro
     }
   }
   md << "\n![predicted colouring error](" << std::filesystem::path(files.png).filename().string() << ")\n";
-  std::ofstream out(files.markdown);
-  out << md.str();
-  if (!out) throw core::Error(files.markdown, "cannot write the Markdown report");
+  core::write_file_atomic(files.markdown, md.str());
 
   // Plot: pixel error and surface error vs depth, one curve per source.
   PlotPanel pixels{"Pixel error (1 sigma RMS)", "depth [m]", "pixel error [px]", {}};
@@ -145,7 +144,9 @@ ReportFiles write_report(const std::string& dir, const error_model::ColoringErro
     }
   }
   const cv::Mat image = draw_panels({pixels, surface});
-  if (!cv::imwrite(files.png, image)) throw core::Error(files.png, "cannot write the PNG plot");
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", image, png)) throw core::Error(files.png, "cannot encode the PNG plot");
+  core::write_file_atomic(files.png, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   return files;
 }
 

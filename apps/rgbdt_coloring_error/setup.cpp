@@ -20,6 +20,7 @@
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/output.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/core/transform.hpp"
@@ -139,7 +140,9 @@ void write_band_plot(const std::string& path, const std::string& title, const er
   cv::rectangle(canvas, cv::Point(340, ly - 10), cv::Point(360, ly), cv::Scalar(0, 200, 0), 1);
   cv::putText(canvas, "card extent", cv::Point(368, ly), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1,
               cv::LINE_AA);
-  if (!cv::imwrite(path, canvas)) throw core::Error(path, "cannot write the PNG");
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", canvas, png)) throw core::Error(path, "cannot encode the PNG");
+  core::write_file_atomic(path, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 struct Row {
@@ -160,7 +163,8 @@ SetupSession read_setup_session(const std::string& path) {
   const YAML::Node root = core::load_yaml_file(src);
   SetupSession s;
   s.directory = fs::absolute(yaml_path).parent_path().lexically_normal().string();
-  if (!root["views"]) {
+  const core::YamlField fields(root, src);
+  if (!fields.has("views")) {
     // Mapping layout (what rgbdt_sim coloring-setup writes): assembled clouds + frame indexes.
     const core::MappingSession mapping = core::read_mapping_session(src);
     if (mapping.lidar.clouds.empty()) {
@@ -185,9 +189,12 @@ SetupSession read_setup_session(const std::string& path) {
   } else {
     // Calibration layout: one entry per placement with its cloud and images.
     const fs::path dir(s.directory);
-    const core::YamlField fields(root, src);
     const std::string camera_map = "a map camera -> {intrinsics: file.yaml}";
     for (const auto& [name, entry] : fields.at("cameras", camera_map).entries(camera_map)) {
+      // The name becomes part of file names (extrinsics_<name>.yaml, the plots).
+      if (!core::is_valid_camera_name(name)) {
+        entry.fail("under a camera name '" + name + "', expected 1 to 64 characters of [A-Za-z0-9_-]");
+      }
       s.intrinsics[name] = resolve(dir, entry.at("intrinsics", "a camera_info YAML file").as_string("a file path"));
     }
     const core::YamlField views = fields.at("views", "a list of placements");
@@ -283,8 +290,9 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
         if (model) row.sigma_m = predicted_sigma(*model, row.measured);
         if (!settings.report_dir.empty()) {
           fs::create_directories(settings.report_dir);
-          char name[96];
-          std::snprintf(name, sizeof(name), "setup_%s_%05.2fm.png", camera_name.c_str(), row.range_m);
+          char range[32];
+          std::snprintf(range, sizeof(range), "%05.2f", row.range_m);
+          const std::string name = "setup_" + camera_name + "_" + range + "m.png";
           std::ostringstream title;
           title << camera_name << ", card at " << fixed(row.range_m, 2) << " m: band x " << fixed(100 * row.measured.band_x_m, 1)
                 << " cm, y " << fixed(100 * row.measured.band_y_m, 1) << " cm";
@@ -342,9 +350,8 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
   if (!settings.report_dir.empty()) {
     fs::create_directories(settings.report_dir);
     const std::string out_path = (fs::path(settings.report_dir) / "coloring_setup.md").string();
-    std::ofstream out(out_path);
-    out << "# Coloring-error setup (paper Sec. 4.4)\n\nSession `" << session.directory << "`\n" << md.str();
-    if (!out) throw core::Error(out_path, "cannot write the report");
+    core::write_file_atomic(out_path, "# Coloring-error setup (paper Sec. 4.4)\n\nSession `" + session.directory +
+                                          "`\n" + md.str());
     std::cout << "\nwrote " << out_path << "\n";
   }
   if (measured_tables == 0) {

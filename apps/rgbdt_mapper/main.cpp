@@ -385,7 +385,13 @@ int main(int argc, char** argv) {
       "counts -> kelvin through the session's radiometry), and writes map.ply, map.pcd,\n"
       "map.bt, map_rgb.ot, map_thermal.ot, trajectory.csv, PNG renders and summary.json into\n"
       "OUT. For simulated sessions summary.json also scores the trajectory and the thermal\n"
-      "colouring against the ground truth."};
+      "colouring against the ground truth.\n"
+      "Before any work a preflight checks every file the session names (camera_info,\n"
+      "extrinsics, frame indexes, each frame's size and bit depth, the clouds); it lists every\n"
+      "problem at once and exits 1 with nothing written. Each output is written whole or not at\n"
+      "all; summary.json is written last and marks a complete run. Ctrl-C stops at the next\n"
+      "cloud, says which outputs are complete, writes no summary.json and exits 130; a second\n"
+      "Ctrl-C ends at once without leaving temporary files."};
   std::string session_path, calib_dir, out_dir, backend = "rgicp", lidar_source = "auto";
   double resolution_m = 0.05;
   int max_clouds = 0;

@@ -81,8 +81,11 @@ void write_bytes(const fs::path& p, const std::string& bytes) {
   ASSERT_TRUE(out.good()) << p;
 }
 
-// Runs <bin>/<app> args... under the memory cap and a wall-clock limit.
-RunResult run_app(const std::string& app, const std::vector<std::string>& args, const fs::path& log) {
+// Runs <bin>/<app> args... under the memory cap and a wall-clock limit. A file size cap
+// (RLIMIT_FSIZE, with SIGXFSZ ignored) makes every write past it fail with EFBIG, as on a
+// full disk.
+RunResult run_app(const std::string& app, const std::vector<std::string>& args, const fs::path& log,
+                  rlim_t file_size_cap = RLIM_INFINITY) {
   RunResult r;
   const std::string program = rgbdt::test::built_program(app);
   r.command = program;
@@ -96,6 +99,12 @@ RunResult run_app(const std::string& app, const std::vector<std::string>& args, 
     const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     ::dup2(fd, 1);
     ::dup2(fd, 2);
+    if (file_size_cap != RLIM_INFINITY) {
+      // The cap holds for the log too: callers keep it above what the app prints.
+      ::signal(SIGXFSZ, SIG_IGN);
+      const rlimit fsize{file_size_cap, file_size_cap};
+      ::setrlimit(RLIMIT_FSIZE, &fsize);
+    }
     std::vector<std::string> all = {program};
     all.insert(all.end(), args.begin(), args.end());
     std::vector<char*> argv;
@@ -226,6 +235,15 @@ class Calibrate : public ::testing::Test {
   RunResult run() { return calibrate(session_, out_, "calibrate"); }
   fs::path session_, out_;
 };
+
+// A full disk: every output larger than 64 kB fails to be written (the extrinsics YAML
+// and report.md fit; the overlay PNGs do not). The run must say which file failed and
+// leave no report.md or extrinsics YAML that looks like a finished calibration.
+TEST_F(Calibrate, FullDiskIsAnErrorNamingTheFile) {
+  const RunResult r = run_app("rgbdt_calibrate", {session_.string(), "--out", out_.string()},
+                              rgbdt::test::temp_path("calibrate.log"), 64 * 1024);
+  expect_clean_failure(r, out_.string(), out_);
+}
 
 TEST_F(Calibrate, ZeroBytePcdIsAnErrorNamingIt) {
   write_bytes(session_ / "clouds/000.pcd", "");

@@ -66,8 +66,10 @@ void expect_consistent_recording(const fs::path& out, int expected_type) {
   const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
   size_t pngs = 0, temporaries = 0;
   for (const auto& e : fs::directory_iterator(out)) {
-    pngs += e.path().extension() == ".png" ? 1 : 0;
-    temporaries += e.path().extension() == ".tmp" ? 1 : 0;
+    // Temporaries are hidden siblings (core::write_file_atomic).
+    const bool hidden = e.path().filename().string().front() == '.';
+    pngs += !hidden && e.path().extension() == ".png" ? 1 : 0;
+    temporaries += hidden ? 1 : 0;
   }
   EXPECT_EQ(temporaries, 0u);
   EXPECT_EQ(pngs, index.size()) << "PNG files not in the index (or listed but missing)";
@@ -173,4 +175,59 @@ TEST(RgbdtCamera, Tau2SubcommandQueriesAndConfiguresTheCamera) {
   EXPECT_NE(text.find("gain mode      high"), std::string::npos) << text;
   EXPECT_NE(text.find("fpa temp       31.2 degC"), std::string::npos) << text;
   EXPECT_EQ(pty.with_emulator([](auto& e) { return e.state().ffc_count; }), 1);
+}
+
+// Bad record arguments end with exit 1 before the camera is opened, naming the option and
+// its value, and leave no recording folder behind.
+TEST(RgbdtCamera, BadRecordArgumentsAreRefusedNamingTheValue) {
+  const auto dir = temp_dir("bad_args");
+  const fs::path file = dir / "a_file";
+  std::ofstream(file) << "x";
+  const fs::path recorded = dir / "recorded";
+  fs::create_directories(recorded);
+  std::ofstream(recorded / "index.csv") << "time_s,file\n";
+  struct Case {
+    std::vector<std::string> args;
+    std::string expected;  // in the message
+  };
+  const fs::path out = dir / "out";
+  const std::vector<Case> cases = {
+      {{"--rate", "-5"}, "--rate -5"},
+      {{"--rate", "inf"}, "--rate inf"},
+      {{"--exposure", "-1"}, "--exposure -1"},
+      {{"--give-up", "-2"}, "--give-up -2"},
+      {{"--timeout-ms", "0"}, "--timeout-ms 0"},
+      {{"--roi", "0,0,-4,10"}, "--roi 0,0,-4,10"},
+  };
+  int k = 0;
+  for (const Case& c : cases) {
+    std::vector<std::string> args = {"record", "--interfaces", "fake", "--id", "Fake_1",
+                                     "--out", out.string(), "--frames", "3"};
+    args.insert(args.end(), c.args.begin(), c.args.end());
+    const fs::path log = dir / ("log" + std::to_string(k++));
+    EXPECT_EQ(run(args, log), 1) << c.expected << ": " << slurp(log);
+    EXPECT_NE(slurp(log).find(c.expected), std::string::npos) << slurp(log);
+    EXPECT_FALSE(fs::exists(out)) << c.expected << " left an output folder";
+  }
+  {
+    const fs::path log = dir / ("log" + std::to_string(k++));
+    EXPECT_EQ(run({"record", "--interfaces", "gige,serial", "--id", "Fake_1", "--out", out.string()}, log), 1)
+        << slurp(log);
+    EXPECT_NE(slurp(log).find("'serial'"), std::string::npos) << slurp(log);
+    EXPECT_FALSE(fs::exists(out));
+  }
+  for (const fs::path& bad_out : {file, recorded}) {
+    const fs::path log = dir / ("log" + std::to_string(k++));
+    EXPECT_EQ(run({"record", "--interfaces", "fake", "--id", "Fake_1", "--out", bad_out.string(),
+                   "--frames", "3"},
+                  log),
+              1)
+        << slurp(log);
+    EXPECT_NE(slurp(log).find("--out " + bad_out.string()), std::string::npos) << slurp(log);
+  }
+  EXPECT_EQ(slurp(file), "x") << "a file given as --out must stay as it was";
+  EXPECT_EQ(fs::file_size(recorded / "index.csv"), 12U) << "an earlier recording must stay";
+  const fs::path log = dir / ("log" + std::to_string(k++));
+  EXPECT_EQ(run({"tau2", "--port", "/dev/null", "--baud", "-9600"}, log), 1) << slurp(log);
+  EXPECT_NE(slurp(log).find("--baud -9600"), std::string::npos) << slurp(log);
 }

@@ -36,18 +36,6 @@ struct PcdHeader {
   std::size_t data_offset = 0;  // first byte after the DATA line
 };
 
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> out;
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
-    if (i > start) out.push_back(line.substr(start, i - start));
-  }
-  return out;
-}
-
 std::string join(const std::vector<std::string_view>& tokens) {
   std::string out;
   for (const auto& t : tokens) out += (out.empty() ? "" : " ") + std::string(t);
@@ -62,27 +50,12 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
                       "file is empty (0 bytes), expected a PCD header (VERSION, FIELDS, ...)");
   }
   std::map<std::string, std::vector<std::string_view>> values;
-  std::size_t pos = 0;
-  int line_no = 0;
+  detail::HeaderLines lines(bytes, path, "PCD", "a DATA line");
   bool have_data = false;
   while (!have_data) {
-    if (pos >= bytes.size()) {
-      throw core::Error(path, "PCD header ends after " + std::to_string(line_no) +
-                                  " lines without a DATA line (expected DATA ascii, binary or "
-                                  "binary_compressed)");
-    }
-    std::size_t eol = bytes.find('\n', pos);
-    if (eol == std::string::npos) eol = bytes.size();
-    if (eol > detail::kMaxHeaderBytes) {
-      throw core::Error(path, "no DATA line within the first " +
-                                  std::to_string(detail::kMaxHeaderBytes) +
-                                  " bytes, expected a PCD header (is this a PCD file?)");
-    }
-    std::string_view line(bytes.data() + pos, eol - pos);
-    pos = eol + 1;
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    const auto tokens = split(line);
+    const std::string_view line = lines.next();
+    const int line_no = lines.line_no();
+    const auto tokens = detail::split_tokens(line);
     if (tokens.empty() || tokens[0][0] == '#') continue;
     std::string key(tokens[0]);
     if (key == "COLUMNS") key = "FIELDS";  // PCD 0.5
@@ -106,7 +79,7 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
     if (key == "DATA") have_data = true;
   }
   PcdHeader h;
-  h.data_offset = std::min(pos, bytes.size());
+  h.data_offset = lines.end();
 
   for (const char* required : {"FIELDS", "SIZE", "TYPE", "WIDTH"}) {
     if (!values.count(required)) {
@@ -342,7 +315,7 @@ void decode_ascii(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
     std::string_view line(bytes.data() + pos, eol - pos);
     pos = eol + 1;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    const auto tokens = split(line);
+    const auto tokens = detail::split_tokens(line);
     if (tokens.empty()) continue;
     if (point >= h.points) {
       throw core::Error(path, "line " + std::to_string(line_no) +
@@ -374,10 +347,7 @@ void decode_ascii(const std::string& bytes, const PcdHeader& h, RawCloud& raw,
   }
 }
 
-}  // namespace
-
-LoadedCloud load_pcd(const std::string& path) {
-  const std::string bytes = detail::read_whole_file(path, "point cloud");
+RawCloud read_raw_pcd(const std::string& bytes, const std::string& path) {
   const PcdHeader h = parse_header(bytes, path);
   RawCloud raw;
   raw.fields = h.fields;
@@ -394,7 +364,54 @@ LoadedCloud load_pcd(const std::string& path) {
       decode_compressed(bytes, h, raw, path);
       break;
   }
-  return detail::to_loaded_cloud(raw, path, "PCD");
+  return raw;
+}
+
+std::uint8_t pcl_datatype(const RawField& f) {
+  switch (f.kind) {
+    case Kind::kInt:
+      return f.size == 1   ? pcl::PCLPointField::INT8
+             : f.size == 2 ? pcl::PCLPointField::INT16
+             : f.size == 4 ? pcl::PCLPointField::INT32
+                           : pcl::PCLPointField::INT64;
+    case Kind::kUint:
+      return f.size == 1   ? pcl::PCLPointField::UINT8
+             : f.size == 2 ? pcl::PCLPointField::UINT16
+             : f.size == 4 ? pcl::PCLPointField::UINT32
+                           : pcl::PCLPointField::UINT64;
+    case Kind::kFloat:
+      break;
+  }
+  return f.size == 4 ? pcl::PCLPointField::FLOAT32 : pcl::PCLPointField::FLOAT64;
+}
+
+}  // namespace
+
+LoadedCloud load_pcd(const std::string& path) {
+  const std::string bytes = detail::read_whole_file(path, "point cloud");
+  return detail::to_loaded_cloud(read_raw_pcd(bytes, path), path, "PCD");
+}
+
+pcl::PCLPointCloud2 load_pcd_blob(const std::string& path) {
+  const std::string bytes = detail::read_whole_file(path, "point cloud");
+  const RawCloud raw = read_raw_pcd(bytes, path);
+  pcl::PCLPointCloud2 blob;
+  for (const RawField& f : raw.fields) {
+    pcl::PCLPointField field;
+    field.name = f.name;
+    field.offset = static_cast<std::uint32_t>(f.offset);
+    field.datatype = pcl_datatype(f);
+    field.count = static_cast<std::uint32_t>(f.count);
+    blob.fields.push_back(std::move(field));
+  }
+  blob.height = 1;
+  blob.width = static_cast<std::uint32_t>(raw.points);
+  blob.point_step = static_cast<std::uint32_t>(raw.point_step);
+  blob.row_step = blob.point_step * blob.width;
+  blob.is_dense = false;
+  const std::size_t size = raw.points * raw.point_step;
+  if (size > 0) blob.data.assign(raw.data, raw.data + size);
+  return blob;
 }
 
 void save_pcd(const std::string& path, const Cloud& cloud, PcdFormat format) {

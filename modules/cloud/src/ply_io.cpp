@@ -35,18 +35,6 @@ struct PlyHeader {
   std::size_t data_offset = 0;
 };
 
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> out;
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
-    if (i > start) out.push_back(line.substr(start, i - start));
-  }
-  return out;
-}
-
 bool scalar_type(std::string_view name, Kind* kind, std::size_t* size) {
   struct Type {
     const char* name;
@@ -78,24 +66,10 @@ PlyHeader parse_header(const std::string& bytes, const std::string& path) {
   }
   PlyHeader h;
   bool have_format = false;
-  std::size_t pos = 0;
-  int line_no = 0;
+  detail::HeaderLines lines(bytes, path, "PLY", "'end_header'");
   while (true) {
-    if (pos >= bytes.size()) {
-      throw core::Error(
-          path, "PLY header ends after " + std::to_string(line_no) + " lines without 'end_header'");
-    }
-    std::size_t eol = bytes.find('\n', pos);
-    if (eol == std::string::npos) eol = bytes.size();
-    if (eol > detail::kMaxHeaderBytes) {
-      throw core::Error(path, "no 'end_header' within the first " +
-                                  std::to_string(detail::kMaxHeaderBytes) +
-                                  " bytes, expected a PLY header");
-    }
-    std::string_view line(bytes.data() + pos, eol - pos);
-    pos = eol + 1;
-    ++line_no;
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const std::string_view line = lines.next();
+    const int line_no = lines.line_no();
     const auto where = " (line " + std::to_string(line_no) + ")";
     if (line_no == 1) {
       if (line != "ply") {
@@ -103,7 +77,7 @@ PlyHeader parse_header(const std::string& bytes, const std::string& path) {
       }
       continue;
     }
-    const auto tokens = split(line);
+    const auto tokens = detail::split_tokens(line);
     if (tokens.empty()) continue;
     const auto key = tokens[0];
     if (key == "comment" || key == "obj_info") continue;
@@ -182,7 +156,7 @@ PlyHeader parse_header(const std::string& bytes, const std::string& path) {
     }
   }
   if (!have_format) throw core::Error(path, "PLY header has no 'format' line");
-  h.data_offset = std::min(pos, bytes.size());
+  h.data_offset = lines.end();
   return h;
 }
 
@@ -200,7 +174,7 @@ std::size_t skip_ascii_lines(const std::string& bytes, std::size_t pos, std::uin
     if (eol == std::string::npos) eol = bytes.size();
     std::string_view line(bytes.data() + pos, eol - pos);
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (!split(line).empty()) ++k;
+    if (!detail::split_tokens(line).empty()) ++k;
     pos = eol + 1;
   }
   return std::min(pos, bytes.size());
@@ -302,7 +276,7 @@ LoadedCloud load_ply(const std::string& path) {
     std::string_view line(bytes.data() + pos, eol - pos);
     pos = eol + 1;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    const auto tokens = split(line);
+    const auto tokens = detail::split_tokens(line);
     if (tokens.empty()) continue;
     if (tokens.size() != per_point) {
       throw core::Error(path, "line " + std::to_string(line_no) + " (vertex " +

@@ -136,6 +136,37 @@ bool parse_float_token(std::string_view token, double* out) {
 
 }  // namespace
 
+std::string_view HeaderLines::next() {
+  if (pos_ >= bytes_.size()) {
+    throw core::Error(path_, format_ + " header ends after " + std::to_string(line_no_) +
+                                 " lines without " + terminator_);
+  }
+  std::size_t eol = bytes_.find('\n', pos_);
+  if (eol == std::string::npos) eol = bytes_.size();
+  if (eol > kMaxHeaderBytes) {
+    throw core::Error(path_, format_ + " header has no " + terminator_ + " within the first " +
+                                 std::to_string(kMaxHeaderBytes) + " bytes (is this a " +
+                                 format_ + " file?)");
+  }
+  std::string_view line(bytes_.data() + pos_, eol - pos_);
+  pos_ = eol + 1;
+  ++line_no_;
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  return line;
+}
+
+std::vector<std::string_view> split_tokens(std::string_view line) {
+  std::vector<std::string_view> out;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
+    if (i > start) out.push_back(line.substr(start, i - start));
+  }
+  return out;
+}
+
 std::string read_whole_file(const std::string& path, const char* what) {
   namespace fs = std::filesystem;
   std::error_code ec;

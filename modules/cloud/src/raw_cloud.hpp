@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "rgbdt/cloud/pcd_io.hpp"
@@ -44,6 +45,35 @@ constexpr std::uint64_t kMaxBodyBytes = std::uint64_t{1} << 30;
 /// Largest |t| accepted, in seconds from the cloud's first point (kMaxRing, the largest
 /// ring, is in rgbdt/cloud/point_types.hpp).
 constexpr double kMaxRelativeTime = 3600.0;
+
+/// The lines of a text header at the start of a file's bytes, one at a time, without their
+/// line ending ("\n" or "\r\n"). `format` ("PCD", "PLY") and `terminator` (the line that
+/// ends the header, as an error message names it) only word the errors.
+class HeaderLines {
+ public:
+  HeaderLines(const std::string& bytes, const std::string& path, std::string format,
+              std::string terminator)
+      : bytes_(bytes), path_(path), format_(std::move(format)), terminator_(std::move(terminator)) {}
+
+  /// The next line. Throws naming the file when the bytes end before the terminator or
+  /// the line reaches past kMaxHeaderBytes (a binary file, not a header).
+  std::string_view next();
+  /// 1-based number of the line next() returned last.
+  int line_no() const { return line_no_; }
+  /// The offset of the first byte after the line next() returned last.
+  std::size_t end() const { return pos_ < bytes_.size() ? pos_ : bytes_.size(); }
+
+ private:
+  const std::string& bytes_;
+  const std::string& path_;
+  std::string format_;
+  std::string terminator_;
+  std::size_t pos_ = 0;
+  int line_no_ = 0;
+};
+
+/// `line` split at runs of spaces and tabs.
+std::vector<std::string_view> split_tokens(std::string_view line);
 
 /// The whole file; throws naming it when it is missing, not a regular file or unreadable.
 std::string read_whole_file(const std::string& path, const char* what);

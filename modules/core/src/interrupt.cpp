@@ -2,6 +2,8 @@
 
 #include <csignal>
 
+#include "rgbdt/core/output.hpp"
+
 namespace rgbdt::core {
 namespace {
 
@@ -9,7 +11,9 @@ volatile std::sig_atomic_t g_signal = 0;
 
 extern "C" void on_interrupt(int sig) {
   if (g_signal != 0) {
-    // A second Ctrl-C: the user wants out now.
+    // A second Ctrl-C: the user wants out now. Temporaries being written are removed first,
+    // so the output folder holds only whole files.
+    remove_unfinished_outputs();
     std::signal(sig, SIG_DFL);
     std::raise(sig);
     return;

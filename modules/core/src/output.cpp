@@ -3,7 +3,9 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
+#include <climits>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -28,10 +30,53 @@ std::string temp_sibling(const std::string& path) {
 
 std::string errno_text() { return std::strerror(errno); }
 
+// The temporaries being written, in fixed storage a signal handler can read: a slot is
+// claimed (kFree -> kFilling), filled, published (kLive) and released (kFree).
+constexpr int kFree = 0;
+constexpr int kFilling = 1;
+constexpr int kLive = 2;
+struct TempSlot {
+  std::atomic<int> state{kFree};
+  char path[PATH_MAX];
+};
+std::array<TempSlot, 64> g_temps;
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler reads slot states");
+
+// Tracks `path` while it exists; returns its slot, or -1 when the path is too long or 64
+// temporaries are tracked already (the write itself goes on untracked).
+int track_temp(const std::string& path) {
+  if (path.size() >= PATH_MAX) return -1;
+  for (std::size_t i = 0; i < g_temps.size(); ++i) {
+    int expected = kFree;
+    if (g_temps[i].state.compare_exchange_strong(expected, kFilling)) {
+      std::memcpy(g_temps[i].path, path.c_str(), path.size() + 1);
+      g_temps[i].state.store(kLive);
+      return static_cast<int>(i);
+    }
+  }
+  return -1;
+}
+
+void untrack_temp(int slot) {
+  if (slot >= 0) g_temps[static_cast<std::size_t>(slot)].state.store(kFree);
+}
+
+class TrackedTemp {
+ public:
+  explicit TrackedTemp(const std::string& path) : slot_(track_temp(path)) {}
+  ~TrackedTemp() { untrack_temp(slot_); }
+  TrackedTemp(const TrackedTemp&) = delete;
+  TrackedTemp& operator=(const TrackedTemp&) = delete;
+
+ private:
+  int slot_;
+};
+
 }  // namespace
 
 void write_file_atomic(const std::string& path, std::string_view content) {
   const std::string tmp = temp_sibling(path);
+  const TrackedTemp tracked(tmp);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) throw Error(path, "cannot open for writing: " + errno_text());
   const char* p = content.data();
@@ -66,10 +111,12 @@ void write_file_atomic(const std::string& path, std::string_view content) {
   }
 }
 
-TempOutput::TempOutput(std::string path) : path_(std::move(path)), temp_(temp_sibling(path_)) {}
+TempOutput::TempOutput(std::string path)
+    : path_(std::move(path)), temp_(temp_sibling(path_)), slot_(track_temp(temp_)) {}
 
 TempOutput::~TempOutput() {
   if (!committed_) ::unlink(temp_.c_str());
+  untrack_temp(slot_);
 }
 
 void TempOutput::commit() {
@@ -96,6 +143,14 @@ void TempOutput::commit() {
     throw Error(path_, "cannot rename the finished file into place: " + why);
   }
   committed_ = true;
+  untrack_temp(slot_);
+  slot_ = -1;
+}
+
+void remove_unfinished_outputs() noexcept {
+  for (TempSlot& s : g_temps) {
+    if (s.state.load() == kLive) ::unlink(s.path);
+  }
 }
 
 void remove_stale_output(const std::string& path) {

@@ -1,11 +1,17 @@
 // Atomic outputs, whole-field number parsing.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/output.hpp"
 #include "rgbdt/core/parse.hpp"
 
@@ -81,6 +87,36 @@ TEST(TempOutput, UncommittedTemporaryIsRemoved) {
   }
   EXPECT_EQ(slurp(d / "map.ply"), "ply\n");
   EXPECT_EQ(entries(d), 1);
+  fs::remove_all(d);
+}
+
+// A second Ctrl-C ends the process at once; the temporary of an output still being
+// written must not stay behind, while files already committed stay whole.
+TEST(TempOutput, SecondInterruptRemovesTheTemporaryAndKeepsCommittedFiles) {
+  const fs::path d = fresh_dir("twice");
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    install_interrupt_handler();
+    std::raise(SIGINT);  // the first one only raises the flag
+    if (!interrupted()) ::_exit(3);
+    TempOutput done((d / "trajectory.csv").string());
+    std::ofstream(done.temp_path()) << "time_s\n";
+    done.commit();
+    TempOutput writing((d / "map.ply").string());
+    std::ofstream(writing.temp_path()) << "ply\n";  // a writer is half-way through
+    std::raise(SIGINT);                              // the second one ends the process
+    ::_exit(4);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "exit status " << status;
+  EXPECT_EQ(WTERMSIG(status), SIGINT);
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(d)) names.push_back(e.path().filename().string());
+  ASSERT_EQ(names.size(), 1U) << "left: " << ::testing::PrintToString(names);
+  EXPECT_EQ(names[0], "trajectory.csv");
+  EXPECT_EQ(slurp(d / "trajectory.csv"), "time_s\n");
   fs::remove_all(d);
 }
 

@@ -3,6 +3,7 @@
 #include "rgbdt/cloud/point_types.hpp"  // defines PCL_NO_PRECOMPILE before PCL's headers
 
 #include <octomap/ColorOcTree.h>
+#include <pcl/conversions.h>
 #include <pcl/io/pcd_io.h>
 
 #include <algorithm>
@@ -16,6 +17,7 @@
 #include <sstream>
 #include <unordered_set>
 
+#include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/output.hpp"
 #include "rgbdt/rgbdt_map/thermal_octree.hpp"
@@ -193,11 +195,21 @@ void write_pcd(const std::string& path, const std::vector<MapPoint>& points, std
 }
 
 std::vector<MapPoint> read_map_pcd(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw core::Error(path, "PCD file does not exist");
-  pcl::PointCloud<PointXYZRGBT> cloud;
-  if (pcl::io::loadPCDFile(path, cloud) != 0) {
-    throw core::Error(path, "cannot read as PCD with fields x y z rgb temperature");
+  // The checked reader sizes everything from the file before a byte is decoded; PCL then
+  // maps the named fields onto the point type.
+  const pcl::PCLPointCloud2 blob = cloud::load_pcd_blob(path);
+  std::string missing;
+  for (const char* name : {"x", "y", "z", "rgb", "temperature"}) {
+    const bool found = std::any_of(blob.fields.begin(), blob.fields.end(),
+                                   [&](const pcl::PCLPointField& f) { return f.name == name; });
+    if (!found) missing += std::string(missing.empty() ? "" : " ") + name;
   }
+  if (!missing.empty()) {
+    throw core::Error(path, "map PCD lacks the fields " + missing +
+                                ", expected x y z rgb temperature (a map written by rgbdt_mapper)");
+  }
+  pcl::PointCloud<PointXYZRGBT> cloud;
+  pcl::fromPCLPointCloud2(blob, cloud);
   std::vector<MapPoint> points(cloud.size());
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     points[i].position_m = Eigen::Vector3f(cloud[i].x, cloud[i].y, cloud[i].z);

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "rgbdt/core/error.hpp"
+#include "rgbdt/core/output.hpp"
 #include "rgbdt/core/transform.hpp"
 
 namespace rgbdt::rgbdt_map {
@@ -91,8 +92,7 @@ Trajectory read_trajectory_csv(const std::string& path) {
 }
 
 void write_trajectory_csv(const std::string& path, const Trajectory& trajectory) {
-  std::ofstream out(path);
-  if (!out) throw core::Error(path, "cannot write trajectory CSV");
+  std::ostringstream out;
   out << "time_s,x,y,z,qx,qy,qz,qw\n" << std::setprecision(10);
   for (const auto& p : trajectory.poses()) {
     const Eigen::Vector3d t = p.T_world_lidar.translation();
@@ -100,7 +100,8 @@ void write_trajectory_csv(const std::string& path, const Trajectory& trajectory)
     out << p.time_s << ',' << t.x() << ',' << t.y() << ',' << t.z() << ',' << q[0] << ',' << q[1] << ','
         << q[2] << ',' << q[3] << '\n';
   }
-  if (!out) throw core::Error(path, "write failed");
+  // A reader sees the whole trajectory or none; write errors are thrown naming the file.
+  core::write_file_atomic(path, out.str());
 }
 
 double trajectory_rmse_m(const Trajectory& estimate, const Trajectory& truth) {

@@ -3,12 +3,13 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/log.hpp"
+#include "rgbdt/core/output.hpp"
+#include "rgbdt/core/time_index.hpp"
 
 namespace rgbdt::thermal_camera {
 namespace fs = std::filesystem;
@@ -17,29 +18,6 @@ namespace {
 
 double monotonic_s() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-// Writes bytes to `path` through a temporary sibling and a rename, which is atomic on
-// POSIX file systems: the final name only ever holds a whole file.
-void write_atomically(const fs::path& path, const std::vector<uchar>& bytes) {
-  const fs::path tmp = path.parent_path() / ("." + path.filename().string() + ".tmp");
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw core::Error(tmp.string(), "cannot open for writing");
-    f.write(reinterpret_cast<const char*>(bytes.data()),
-            static_cast<std::streamsize>(bytes.size()));
-    f.close();
-    if (!f) {
-      std::error_code ignored;
-      fs::remove(tmp, ignored);
-      throw core::Error(tmp.string(), "write failed (disk full?)");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec)
-    throw core::Error(path.string(),
-                      "cannot rename the temporary file into place: " + ec.message());
 }
 
 }  // namespace
@@ -87,7 +65,9 @@ std::string FrameRecorder::write(const Frame& frame, double time_s) {
                                          "x" + std::to_string(image.rows) + " image of type " +
                                          std::to_string(image.type()));
   }
-  write_atomically(path, png);
+  // The final name only ever holds a whole frame (a temporary sibling renamed into place).
+  core::write_file_atomic(
+      path.string(), std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   entries_.push_back({time_s, path.string()});
   dirty_ = true;
   if (monotonic_s() - last_flush_s_ >= options_.index_flush_interval_s) flush_index();
@@ -95,13 +75,7 @@ std::string FrameRecorder::write(const Frame& frame, double time_s) {
 }
 
 void FrameRecorder::flush_index() {
-  const fs::path final_path(index_path_);
-  const fs::path tmp = final_path.parent_path() / ".index.csv.tmp";
-  core::write_time_index(tmp.string(), entries_);
-  std::error_code ec;
-  fs::rename(tmp, final_path, ec);
-  if (ec)
-    throw core::Error(index_path_, "cannot rename the temporary index into place: " + ec.message());
+  core::write_time_index(index_path_, entries_);  // atomic: a reader sees a whole index
   last_flush_s_ = monotonic_s();
   dirty_ = false;
 }

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstring>
 #include <deque>
 #include <opencv2/imgproc.hpp>
@@ -162,10 +163,10 @@ std::string GenicamOptions::validate() const {
   if (region && (region->x < 0 || region->y < 0 || region->width < 0 || region->height < 0)) {
     return "region has a negative value";
   }
-  if (!(frame_rate_hz >= 0.0))
-    return "frame_rate_hz = " + std::to_string(frame_rate_hz) + ", expected >= 0";
-  if (!(exposure_us >= 0.0))
-    return "exposure_us = " + std::to_string(exposure_us) + ", expected >= 0";
+  if (!(frame_rate_hz >= 0.0 && std::isfinite(frame_rate_hz)))
+    return "frame_rate_hz = " + std::to_string(frame_rate_hz) + ", expected a finite value >= 0";
+  if (!(exposure_us >= 0.0 && std::isfinite(exposure_us)))
+    return "exposure_us = " + std::to_string(exposure_us) + ", expected a finite value >= 0";
   if (buffer_count < 2) return "buffer_count = " + std::to_string(buffer_count) + ", expected >= 2";
   if (timeout_ms < 1) return "timeout_ms = " + std::to_string(timeout_ms) + ", expected >= 1";
   if (timeouts_before_reconnect < 1) {

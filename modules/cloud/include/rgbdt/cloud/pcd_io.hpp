@@ -6,6 +6,8 @@
 /// for picking the reader by extension see cloud_io.hpp. Files may carry any subset of the
 /// optional fields; which ones were present is reported so callers can recover the rest
 /// (e.g. scan lines from geometry when `ring` is absent).
+#include <pcl/PCLPointCloud2.h>
+
 #include <string>
 
 #include "rgbdt/cloud/point_types.hpp"
@@ -34,6 +36,12 @@ struct LoadedCloud {
 /// Throws rgbdt::core::Error naming the file, and the point or header value at fault, when
 /// it is missing, unreadable, malformed, truncated or lacks x y z.
 LoadedCloud load_pcd(const std::string& path);
+
+/// Loads a PCD of any point type for pcl::fromPCLPointCloud2: the same header, size and
+/// compressed-size checks as load_pcd run before any data is decoded, then the body is
+/// handed over as PCL's blob (fields at their offsets, one unorganised row; no value
+/// checks, no fields required). Throws rgbdt::core::Error naming the file as load_pcd does.
+pcl::PCLPointCloud2 load_pcd_blob(const std::string& path);
 
 enum class PcdFormat { kAscii, kBinary, kBinaryCompressed };
 

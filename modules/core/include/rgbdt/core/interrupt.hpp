@@ -2,7 +2,8 @@
 /// \file
 /// Ctrl-C for long-running apps: the first SIGINT or SIGTERM only raises a flag that the
 /// app polls between units of work (a cloud, a view), so it can stop cleanly, keep what is
-/// complete and say so. A second signal ends the process at once.
+/// complete and say so. A second signal ends the process at once, after removing the
+/// temporary files of outputs still being written (core::remove_unfinished_outputs).
 
 namespace rgbdt::core {
 

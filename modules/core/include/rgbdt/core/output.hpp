@@ -35,8 +35,15 @@ class TempOutput {
  private:
   std::string path_;
   std::string temp_;
+  int slot_ = -1;  // where remove_unfinished_outputs() finds temp_
   bool committed_ = false;
 };
+
+/// Removes every temporary file that write_file_atomic or a TempOutput is writing at this
+/// moment. Async-signal-safe: the interrupt handler calls it before a second Ctrl-C ends
+/// the process, so no hidden temporary is left behind. (Up to 64 temporaries at a time are
+/// tracked, paths up to PATH_MAX.)
+void remove_unfinished_outputs() noexcept;
 
 /// Removes `path` if it exists (a stale output of an earlier run); throws naming it when it
 /// exists and cannot be removed.

@@ -43,6 +43,8 @@ Eigen::Isometry3d scale_motion(const Eigen::Isometry3d& a, const Eigen::Isometry
 /// Reads CSV "time_s,x,y,z,qx,qy,qz,qw" (header line optional). Throws rgbdt::core::Error
 /// naming the file and line.
 Trajectory read_trajectory_csv(const std::string& path);
+/// Writes the same CSV atomically (a temporary sibling renamed into place); throws
+/// rgbdt::core::Error naming the file when any write, the close or the rename fails.
 void write_trajectory_csv(const std::string& path, const Trajectory& trajectory);
 
 /// Root mean square of the translation error between `estimate` and `truth`, evaluated at
