@@ -280,11 +280,10 @@ core::Vector6d twist_between(const TimedPose& a, const TimedPose& b) {
 /// less than 1/10 of rotation_epsilon_rad (0.1 mm and 1e-5 rad by default), or when the pose
 /// comes back to where it was 2-4 steps before, every step since below the epsilons
 /// themselves (the correspondences cycle). Steps shrink by ~0.25x each near the minimum, so
-/// a 0.1 mm step leaves ~0.03 mm to go. Until session 16 the test was 10x tighter (0.01 mm,
-/// 1e-6 rad): on the 14 sim streets of CONTRIBUTING.md that took 13 % (default) and 16 %
-/// (--accurate) more Gauss-Newton steps per tilt for the same trajectories (each street's
-/// anchored error within 1.4 mm, --accurate within 0.3 mm; 30x looser moved one street by
-/// 2.5 mm). target_tree holds `target`. kept (optional): the neighbours of `source`'s points
+/// a 0.1 mm step leaves ~0.03 mm to go. A test 10x tighter (0.01 mm, 1e-6 rad) takes 13 %
+/// (default) and 16 % (--accurate) more Gauss-Newton steps per tilt on the 14 sim streets of
+/// docs/mapping.md for the same trajectories (each street's anchored error within 1.4 mm,
+/// --accurate within 0.3 mm); 30x looser moves one street by 2.5 mm. target_tree holds `target`. kept (optional): the neighbours of `source`'s points
 /// as an earlier run on the same target left them (the points may have moved since:
 /// NearestKept measures). coarse: stop at 10x the tail test's thresholds (1 mm and 1e-4
 /// rad), for a run whose pose only sets the de-skew of the next.
@@ -628,7 +627,7 @@ CurveResult solve_curve(const std::vector<CurveCloud>& clouds, const Eigen::Isom
   // whatever H, and there the correspondences barely change from step to step, nor H with
   // them. A term of g costs ~1/15 of the multiplications of its H. On sim street seed 1
   // (--accurate) 103 of the 191 steps of the windows and the start-up kept H, the steps
-  // per window stayed 4.5, and the 14 streets of CONTRIBUTING.md each moved by <= 0.2 mm
+  // per window stayed 4.5, and the 14 streets of docs/mapping.md each moved by <= 0.2 mm
   // (mean anchored error 0.0291 m both). Kept from 100x on (after the first step), the
   // steps per window went from 4.5 to 6.5.
   constexpr double kKeepHessianBelow = 30.0;
@@ -1159,7 +1158,7 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
     // tail; both runs share the neighbours found (NearestKept measures how far the second
     // de-skew moved each point). Measured while the full tail was 10x tighter than it is
     // now (robust_gicp): stopping it at 10x that tail took 16 % fewer Gauss-Newton steps on
-    // sim street seed 1 (mean anchored error on the 14 streets of CONTRIBUTING.md 0.0771 ->
+    // sim street seed 1 (mean anchored error on the 14 streets of docs/mapping.md 0.0771 ->
     // 0.0772 m); at 100x (1 mm, 1e-4 rad, as now), 12.0 steps per tilt against 14.8 at 10x
     // (--accurate 18.7 against 24.7), the 14 streets' mean 0.0769 against 0.0772 m
     // (--accurate 0.0291 m both).
@@ -1362,7 +1361,7 @@ void Odometry::refine_window() {
   window_.iterations += r.iterations;
   // The target from here to the next window: the fixed part as merged for the solve, the
   // window's clouds joining it as they are (as new clouds join it between windows). Merging
-  // all the clouds anew here measured the same on the 14 sim streets of CONTRIBUTING.md
+  // all the clouds anew here measured the same on the 14 sim streets of docs/mapping.md
   // (mean anchored 0.0362 against 0.0363 m) and cost a merge and the covariances of every
   // merged point once per window.
   auto rebuild_from_fixed = [&] {
@@ -1390,7 +1389,7 @@ void Odometry::refine_window() {
     // registration de-skewed it with a constant velocity: centimetres off at its far end);
     // the others' turn with their cloud. With a window after every tilt the others' were so
     // computed when they were newest; keeping the registration's for the newest too then
-    // gave 11.8 against 10.5 mm mean aligned error on the 14 sim streets of CONTRIBUTING.md.
+    // gave 11.8 against 10.5 mm mean aligned error on the 14 sim streets of docs/mapping.md.
     // With a window every 3rd tilt and the merged map, no cloud enters a second window: the
     // newest's serve only until the next window merges it into the fixed part, where the
     // merged points get their own; they are the registration's, turned (the 14 streets'

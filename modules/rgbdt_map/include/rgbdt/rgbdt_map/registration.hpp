@@ -47,8 +47,8 @@ struct RegistrationOptions {
   /// de-skew is guessed and the local map is one or two tilts, so their residuals are larger
   /// than the LIDAR's noise.
   /// Once the map has formed, the tighter scale measured better: with the loose one the
-  /// registration carries a pitch bias (CONTRIBUTING.md, session 10; its cause is not
-  /// measured). On the 14 LIDAR-only 100 m sim streets of CONTRIBUTING.md,
+  /// registration carries a pitch bias (docs/mapping.md, "The pitch bias"; its cause is not
+  /// measured). On the 14 LIDAR-only 100 m sim streets of docs/mapping.md,
   /// 0.1 after the 10th cloud: --accurate mean anchored 0.029 against 0.033 m, aligned 0.0042
   /// against 0.0068 m (lower on every street), the mean pitch error 0.00 against 0.02 deg,
   /// for 1-7 % more time (two runs); with the true motion as prior 0.033 against 0.046 m (0.1 throughout);
@@ -70,8 +70,8 @@ struct RegistrationOptions {
   /// millimetre apart). 0.1 mm is 20x below the noise floor of the registration tests. [m]
   double translation_epsilon_m = 1e-4;
   /// ... and rotates it by less than this (PCL GICP: largest change of a rotation matrix
-  /// element, ~ the angle; ours: a tenth of it, as the step's angle; 10x tighter still
-  /// until session 16, for the same trajectories: robust_gicp in registration.cpp). [rad]
+  /// element, ~ the angle; ours: a tenth of it, as the step's angle; a test 10x tighter
+  /// gives the same trajectories in more steps: robust_gicp in registration.cpp). [rad]
   double rotation_epsilon_rad = 1e-4;
   /// GICP and ours: neighbours that estimate each point's covariance (PCL's
   /// k_correspondences).
@@ -148,7 +148,7 @@ struct RegistrationOptions {
   /// registration then meets a map without accumulated error, so each returned pose's
   /// error is that registration's own bias on that tilt (rgbdt_map_drift's `map-at-truth`
   /// row). Measured so on the 14 sim streets: the mean pitch error per tilt differs with
-  /// the sweep direction (see CONTRIBUTING.md, Session 11).
+  /// the sweep direction (docs/mapping.md, "The pitch bias").
   bool map_at_prior = false;
   double min_range_m = 0.5;          ///< points nearer (the cart itself) are ignored [m]
   double max_range_m = 40.0;         ///< farther points are ignored [m]
@@ -156,7 +156,7 @@ struct RegistrationOptions {
 
   /// rgbdt_mapper --accurate: the defaults with start_up_clouds = 4, merged_local_map_m =
   /// 0.25, window_clouds = 3 (every 3rd tilt from the 13th), local_map_clouds = 24 and
-  /// settled_robust_scale2 = 0.1. On the 14 LIDAR-only 100 m sim streets of CONTRIBUTING.md
+  /// settled_robust_scale2 = 0.1. On the 14 LIDAR-only 100 m sim streets of docs/mapping.md
   /// (rgbdt_map_drift --seeds 14), mean anchored RMSE 0.029 m (RMS over the streets 0.035 m,
   /// 1 of 14 above 0.05 m, worst 0.090 m), aligned 0.004 m, 79 ms per tilt against the
   /// default's 31 ms (thread CPU, same run); ~69 ms since the merged map's covariances are
