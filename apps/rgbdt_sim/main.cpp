@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
   rgbdt::sim::CalibrationSessionOptions cal;
   std::string cal_out;
   bool cal_night = false, cal_no_mixed = false;
+  std::string cal_lidar = "tilt";
   auto* calibration = app.add_subcommand(
       "calibration",
       "Circle-hole target (white board, 1 or 4 holes) in front of a wet black cloth at varied poses 3-8 m: "
@@ -57,8 +58,21 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   calibration->add_option("--tilt-range", cal.tilt_half_range_deg, "Tilt sweeps +-this many degrees")
       ->capture_default_str();
+  calibration->add_option("--lidar", cal_lidar,
+                          "LIDAR kind: tilt (the rig's tilting Hokuyo, ring = scan), spinning16 / spinning32 / "
+                          "spinning64 (VLP-16 / 32-beam / OS1-64 like, ring = beam), dense (Livox-like "
+                          "non-repetitive rosette, no ring field)")
+      ->capture_default_str();
+  calibration->add_option("--range-noise", cal.range_noise_m,
+                          "LIDAR range noise sigma [m]; < 0: the kind's own (tilt, spinning 0.01 m; dense 0.02 m) "
+                          "times --noise")
+      ->capture_default_str();
+  calibration->add_option("--dense-duration", cal.dense_duration_s,
+                          "Accumulation time of a dense cloud [s] at 100k points/s")
+      ->capture_default_str();
   calibration->add_flag("--night", cal_night, "Night temperatures and lighting");
-  calibration->add_flag("--no-mixed-pixels", cal_no_mixed, "Disable LIDAR mixed pixels at depth edges");
+  calibration->add_flag("--no-mixed-pixels", cal_no_mixed,
+                        "Disable the LIDAR beam footprint (mixed pixels at depth edges)");
 
   // checkerboard
   rgbdt::sim::CheckerboardSessionOptions chk;
@@ -129,9 +143,10 @@ int main(int argc, char** argv) {
     if (*calibration) {
       cal.time_of_day = cal_night ? rgbdt::sim::TimeOfDay::kNight : rgbdt::sim::TimeOfDay::kDay;
       cal.rig.lidar.mixed_pixels = !cal_no_mixed;
+      cal.lidar = rgbdt::sim::lidar_kind_from_string(cal_lidar);
       const auto r = rgbdt::sim::write_calibration_session(cal_out, cal);
-      std::printf("calibration session: %d views, %d hole(s) of radius %.3f m -> %s (%.1f s)\n",
-                  static_cast<int>(r.views.size()), cal.holes, r.target.radius_m, r.directory.c_str(),
+      std::printf("calibration session: %d views, %d hole(s) of radius %.3f m, %s LIDAR -> %s (%.1f s)\n",
+                  static_cast<int>(r.views.size()), cal.holes, r.target.radius_m, cal_lidar.c_str(), r.directory.c_str(),
                   seconds_since(t0));
     }
     if (*checkerboard) {

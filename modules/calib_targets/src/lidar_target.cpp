@@ -18,6 +18,7 @@
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <set>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -326,7 +327,7 @@ std::vector<Vec2> match_layout(const std::vector<Vec2>& layout,
 /// Returns edge points (3D) with the half-step correction applied when asked.
 std::vector<Vec3> scan_line_edges(const std::vector<Vec3>& pts, const std::vector<int>& idx,
                                   const std::vector<int>& line, const PlaneFrame& frame,
-                                  const LidarDetectionOptions& options) {
+                                  const LidarDetectionOptions& options, std::vector<int>* edge_lines) {
   std::map<int, std::vector<int>> by_line;  // Algorithm 2, lines 7-13
   for (std::size_t k = 0; k < idx.size(); ++k) by_line[line[k]].push_back(idx[k]);
   std::vector<Vec3> edges;
@@ -367,6 +368,8 @@ std::vector<Vec3> scan_line_edges(const std::vector<Vec3>& pts, const std::vecto
       }
       edges.push_back(frame.to3d(frame.to2d(a)));
       edges.push_back(frame.to3d(frame.to2d(b)));
+      edge_lines->push_back(id);
+      edge_lines->push_back(id);
     }
   }
   return edges;
@@ -460,30 +463,44 @@ struct BoardResult {
   Eigen::Vector4d plane;
   std::vector<LidarHole> holes;
   std::string method;
+  std::string profile;
+  double edge_bias_m = 0.0;
+  std::string edge_bias_source = "none";
 };
 
-/// Hole detection and fitting on one board segment C (board indices into pts).
-BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>& board,
-                           const std::vector<int>& rings, bool has_lines,
-                           const core::TargetSpec& target, const LidarDetectionOptions& options) {
-  BoardResult res;
-  const double r = target.radius_m;
-  if (static_cast<int>(board.size()) < options.min_board_points) {
-    res.reason = "plane segment has " + std::to_string(board.size()) + " points, fewer than " +
-                 std::to_string(options.min_board_points);
-    return res;
-  }
-  res.plane = fit_plane(pts, board);
+/// The board segment in its own plane frame, with its point spacing.
+struct BoardGeometry {
+  PlaneFrame frame;
+  std::vector<Vec2> q;   ///< board points in plane coordinates [m]
+  double spacing = 0.0;  ///< median nearest-neighbour distance in the plane [m]
+};
+
+BoardGeometry board_geometry(const std::vector<Vec3>& pts, const std::vector<int>& board,
+                             const Eigen::Vector4d& plane, const Vec3& up) {
+  BoardGeometry g;
   Vec3 centroid = Vec3::Zero();
   for (int i : board) centroid += pts[static_cast<std::size_t>(i)];
   centroid /= static_cast<double>(board.size());
-  const PlaneFrame frame = make_frame(res.plane, centroid, options.up_lidar);
-  std::vector<Vec2> q;
-  q.reserve(board.size());
-  for (int i : board) q.push_back(frame.to2d(pts[static_cast<std::size_t>(i)]));
+  g.frame = make_frame(plane, centroid, up);
+  g.q.reserve(board.size());
+  for (int i : board) g.q.push_back(g.frame.to2d(pts[static_cast<std::size_t>(i)]));
+  pcl::PointCloud<pcl::PointXYZ>::Ptr pc(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const Vec2& p : g.q) pc->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), 0.f));
+  pcl::KdTreeFLANN<pcl::PointXYZ> kd;
+  kd.setInputCloud(pc);
+  std::vector<double> nn;
+  std::vector<int> ki(2);
+  std::vector<float> kd2(2);
+  for (std::size_t k = 0; k < pc->size(); k += std::max<std::size_t>(1, pc->size() / 2000)) {
+    if (kd.nearestKSearch(pc->points[k], 2, ki, kd2) == 2) nn.push_back(std::sqrt(kd2[1]));
+  }
+  g.spacing = median(nn);
+  return g;
+}
 
-  // Board size sanity: the layout must fit in the segment's extent.
-  const std::vector<Vec2> layout = target_layout(target);
+/// Board size sanity: the layout must fit in the segment's extent. Empty when it does.
+std::string check_board_extent(const std::vector<Vec2>& q, const std::vector<Vec2>& layout,
+                               const core::TargetSpec& target) {
   Vec2 lo = q[0], hi = q[0];
   for (const Vec2& p : q) {
     lo = lo.cwiseMin(p);
@@ -494,138 +511,231 @@ BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>&
     llo = llo.cwiseMin(p);
     lhi = lhi.cwiseMax(p);
   }
-  const double layout_extent = (lhi - llo).norm() + 2.0 * r;
+  const double layout_extent = (lhi - llo).norm() + 2.0 * target.radius_m;
   const double extent = (hi - lo).norm();
   double max_extent = 4.0 * layout_extent + 1.0;
   if (target.board_size_m) max_extent = 1.5 * target.board_size_m->norm() + 0.3;
-  if (extent < layout_extent || extent > max_extent) {
-    std::ostringstream s;
-    s << "plane segment of extent " << extent << " m does not fit the target (expected "
-      << layout_extent << ".." << max_extent << " m)";
-    res.reason = s.str();
-    return res;
-  }
+  if (extent >= layout_extent && extent <= max_extent) return {};
+  std::ostringstream s;
+  s << "plane segment of extent " << extent << " m does not fit the target (expected " << layout_extent << ".."
+    << max_extent << " m)";
+  return s.str();
+}
 
-  // Point spacing on the board (median nearest-neighbour distance, in plane).
-  pcl::PointCloud<pcl::PointXYZ>::Ptr pc(new pcl::PointCloud<pcl::PointXYZ>);
-  for (const Vec2& p : q) pc->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()), 0.f));
-  pcl::KdTreeFLANN<pcl::PointXYZ> kd;
-  kd.setInputCloud(pc);
-  std::vector<double> nn;
-  std::vector<int> ki(2);
-  std::vector<float> kd2(2);
-  for (std::size_t k = 0; k < pc->size(); k += std::max<std::size_t>(1, pc->size() / 2000)) {
-    if (kd.nearestKSearch(pc->points[k], 2, ki, kd2) == 2) nn.push_back(std::sqrt(kd2[1]));
-  }
-  const double spacing = median(nn);
-  const double cell = options.grid_cell_m > 0 ? options.grid_cell_m
-                                              : std::clamp(r / 12.0, 0.004, 0.03);
+/// Where the edges come from, measured on the board: its scan lines (ring field, or lines
+/// recovered from the elevations when most board points lie on lines of >= 5 points), or
+/// none (a dense cloud without lines: occupancy edges).
+struct EdgeSource {
+  bool use_lines = false;
+  std::vector<int> lines;  ///< line id per board point
+  std::string method = "occupancy";
+  std::string reason;      ///< non-empty: the requested method is impossible
+};
 
-  std::vector<HoleCandidate> cand;
-  for (const HoleCandidate& c : find_empty_discs(q, r, cell)) {
-    if (enclosed(q, c.center, r)) cand.push_back(c);
+EdgeSource choose_edge_source(const std::vector<Vec3>& pts, const std::vector<int>& board,
+                              const std::vector<int>& rings, bool has_ring,
+                              const LidarDetectionOptions& options) {
+  EdgeSource src;
+  if (options.edge_method == LidarEdgeMethod::kOccupancy) return src;
+  if (has_ring) {
+    for (int i : board) src.lines.push_back(rings[static_cast<std::size_t>(i)]);
+    src.use_lines = true;
+    src.method = "scan_lines (ring)";
+    return src;
   }
-  int matched = 0;
-  const std::vector<Vec2> init = match_layout(layout, cand, r, &matched);
-  res.matched = matched;
-  if (init.empty()) {
-    res.reason = "no enclosed empty disc of radius " + std::to_string(r) + " m in the layout (" +
-                 std::to_string(cand.size()) + " candidate(s))";
-    return res;
+  src.lines = recover_lines(pts, board, options.up_lidar, options.scan_line_gap_rad);
+  std::map<int, int> count;
+  for (int l : src.lines) ++count[l];
+  std::size_t in_long = 0;
+  for (const auto& [l, c] : count) {
+    if (c >= 5) in_long += static_cast<std::size_t>(c);
   }
+  // Lines of a multi-beam LIDAR are tight in elevation (one beam: equal to float precision)
+  // and far apart (width < half the gap); elevation clusters of a non-repetitive pattern
+  // are as wide as their gaps.
+  std::map<int, std::pair<double, double>> lo_hi;
+  for (std::size_t k = 0; k < board.size(); ++k) {
+    const double e = std::asin(std::clamp(pts[static_cast<std::size_t>(board[k])].normalized().dot(options.up_lidar), -1.0, 1.0));
+    auto it = lo_hi.find(src.lines[k]);
+    if (it == lo_hi.end()) lo_hi[src.lines[k]] = {e, e};
+    else it->second = {std::min(it->second.first, e), std::max(it->second.second, e)};
+  }
+  std::vector<double> widths, gaps;
+  double prev_hi = 0.0;
+  bool first = true;
+  for (const auto& [l, range] : lo_hi) {
+    widths.push_back(range.second - range.first);
+    if (!first) gaps.push_back(range.first - prev_hi);
+    prev_hi = range.second;
+    first = false;
+  }
+  const bool tight = !gaps.empty() && median(widths) < 0.5 * median(gaps);
+  if (tight && count.size() >= 3 && in_long >= 0.8 * static_cast<double>(board.size())) {
+    src.use_lines = true;
+    src.method = "scan_lines (recovered)";
+  } else if (options.edge_method == LidarEdgeMethod::kScanLines) {
+    src.reason = "no ring field and no scan lines recoverable from the elevations";
+  } else {
+    src.lines.clear();
+  }
+  return src;
+}
 
-  // Scan lines: ring ids or recovered elevation lines, checked for plausibility.
-  std::vector<int> lines;
-  bool use_lines = options.edge_method != LidarEdgeMethod::kOccupancy;
-  res.method = "occupancy";
-  if (use_lines) {
-    if (has_lines) {
-      for (int i : board) lines.push_back(rings[static_cast<std::size_t>(i)]);
-      res.method = "scan_lines (ring)";
-    } else {
-      lines = recover_lines(pts, board, options.up_lidar, options.scan_line_gap_rad);
-      std::map<int, int> count;
-      for (int l : lines) ++count[l];
-      std::size_t in_long = 0;
-      for (const auto& [l, c] : count) {
-        if (c >= 5) in_long += static_cast<std::size_t>(c);
-      }
-      const bool plausible = count.size() >= 3 && in_long >= 0.8 * static_cast<double>(board.size());
-      if (plausible) {
-        res.method = "scan_lines (recovered)";
-      } else if (options.edge_method == LidarEdgeMethod::kScanLines) {
-        res.reason = "no ring field and no scan lines recoverable from the elevations";
-        return res;
-      } else {
-        use_lines = false;
-      }
-    }
-  }
-  std::vector<Vec3> line_edges;
-  if (use_lines) line_edges = scan_line_edges(pts, board, lines, frame, options);
-
-  for (std::size_t h = 0; h < init.size(); ++h) {
-    LidarHole hole;
-    Vec2 c2 = init[h];
-    std::vector<Vec3> edges;
-    for (int pass = 0; pass < 2; ++pass) {
-      edges.clear();
-      if (use_lines) {
-        for (const Vec3& e : line_edges) {
-          if (std::abs((frame.to2d(e) - c2).norm() - r) < (pass == 0 ? 0.5 : 0.25) * r) edges.push_back(e);
+/// Edge points of the hole near c2 (two passes: gather near the circle, fit the centre with
+/// the known radius, gather again closer), then outlier rejection. Empty on failure.
+std::vector<Vec3> hole_edges(const std::vector<Vec3>& line_edges, const std::vector<int>& line_ids,
+                             const BoardGeometry& g, double r, const LidarDetectionOptions& options,
+                             bool use_lines, Vec2* c2, std::vector<int>* edge_lines, bool* fell_back) {
+  std::vector<Vec3> edges;
+  for (int pass = 0; pass < 2; ++pass) {
+    edges.clear();
+    edge_lines->clear();
+    if (use_lines) {
+      for (std::size_t k = 0; k < line_edges.size(); ++k) {
+        if (std::abs((g.frame.to2d(line_edges[k]) - *c2).norm() - r) < (pass == 0 ? 0.5 : 0.25) * r) {
+          edges.push_back(line_edges[k]);
+          edge_lines->push_back(line_ids[k]);
         }
       }
-      if (static_cast<int>(edges.size()) < options.min_edge_points &&
-          options.edge_method != LidarEdgeMethod::kScanLines) {
-        edges = occupancy_edges(q, c2, r, spacing, frame, options);
-        if (use_lines) res.method += "+occupancy";
-      }
-      if (static_cast<int>(edges.size()) < options.min_edge_points) break;
-      double rms = 0.0;
-      const Vec3 c3 = fit_circle_center_in_plane(edges, frame.n, frame.origin, r, frame.to3d(c2), &rms);
-      c2 = frame.to2d(c3);
     }
-    if (static_cast<int>(edges.size()) < options.min_edge_points) {
-      res.reason = "hole " + std::to_string(h) + ": " + std::to_string(edges.size()) +
-                   " edge points, fewer than " + std::to_string(options.min_edge_points);
-      return res;
+    if (static_cast<int>(edges.size()) < options.min_edge_points &&
+        options.edge_method != LidarEdgeMethod::kScanLines) {
+      edges = occupancy_edges(g.q, *c2, r, g.spacing, g.frame, options);
+      edge_lines->clear();
+      if (use_lines) *fell_back = true;
     }
-    // Outlier rejection (mixed returns at the rim, the board's outer border), then refit.
-    std::vector<double> dev;
-    for (const Vec3& e : edges) dev.push_back(std::abs((frame.to2d(e) - c2).norm() - r));
-    const double limit = std::max(0.02, 3.0 * 1.4826 * median(dev));
-    std::vector<Vec3> kept;
-    for (std::size_t k = 0; k < edges.size(); ++k) {
-      if (dev[k] <= limit) kept.push_back(edges[k]);
-    }
-    if (static_cast<int>(kept.size()) >= options.min_edge_points) edges = kept;
-    hole.center = fit_circle_center_in_plane(edges, frame.n, frame.origin, r, frame.to3d(c2), &hole.rms_m);
-    hole.normal = frame.n;
-    // The free radius is measured only when the edges surround the hole (>= 5 of 12
-    // sectors); edges from one or two scan lines leave it unconstrained.
-    std::array<bool, 12> sector{};
-    for (const Vec3& e : edges) {
-      const Vec2 d = frame.to2d(e) - frame.to2d(hole.center);
-      sector[static_cast<std::size_t>(std::min(11, static_cast<int>((std::atan2(d.y(), d.x()) + kPi) / (2 * kPi) * 12)))] = true;
-    }
-    hole.radius_measured = std::count(sector.begin(), sector.end(), true) >= 5;
-    hole.radius_m = hole.radius_measured ? fit_free_radius(edges, frame, frame.to2d(hole.center), r) : r;
-    hole.edge_points = edges;
-    // A hole of this target: the free radius and the residual must agree with the known
-    // radius (rejects gaps, windows and shadows that happen to be empty discs).
-    if (std::abs(hole.radius_m - r) > options.max_radius_error * r ||
-        hole.rms_m > options.max_rms_fraction * r) {
-      std::ostringstream s;
-      s << "hole " << h << ": fitted radius " << hole.radius_m << " m (rms " << hole.rms_m
-        << " m) does not match the target radius " << r << " m";
-      res.reason = s.str();
-      return res;
-    }
-    res.score += (std::abs(hole.radius_m - r) + hole.rms_m) / r / static_cast<double>(init.size());
-    hole.circle_points = sample_circle(hole.center, hole.normal, r, options.circle_step_deg);
-    res.holes.push_back(std::move(hole));
+    if (static_cast<int>(edges.size()) < options.min_edge_points) return {};
+    const Vec3 c3 = fit_circle_center_in_plane(edges, g.frame.n, g.frame.origin, r, g.frame.to3d(*c2));
+    *c2 = g.frame.to2d(c3);
   }
-  // Holes are in layout order already; contracts.md asks row-major, top-left first.
+  // Outlier rejection (mixed returns at the rim, the board's outer border).
+  std::vector<double> dev;
+  for (const Vec3& e : edges) dev.push_back(std::abs((g.frame.to2d(e) - *c2).norm() - r));
+  const double limit = std::max(0.02, 3.0 * 1.4826 * median(dev));
+  std::vector<Vec3> kept;
+  std::vector<int> kept_lines;
+  for (std::size_t k = 0; k < edges.size(); ++k) {
+    if (dev[k] > limit) continue;
+    kept.push_back(edges[k]);
+    if (!edge_lines->empty()) kept_lines.push_back((*edge_lines)[k]);
+  }
+  if (static_cast<int>(kept.size()) < options.min_edge_points) return edges;
+  *edge_lines = std::move(kept_lines);
+  return kept;
+}
+
+/// Known-radius centre fit of one hole's edges, the free radius when the edges surround the
+/// hole (>= 5 of 12 sectors; edges of one or two lines leave it unconstrained).
+LidarHole fit_hole(std::vector<Vec3> edges, const std::vector<int>& edge_lines, const BoardGeometry& g,
+                   const Vec2& c2, double r) {
+  LidarHole hole;
+  hole.center = fit_circle_center_in_plane(edges, g.frame.n, g.frame.origin, r, g.frame.to3d(c2), &hole.rms_m);
+  hole.normal = g.frame.n;
+  std::array<bool, 12> sector{};
+  for (const Vec3& e : edges) {
+    const Vec2 d = g.frame.to2d(e) - g.frame.to2d(hole.center);
+    sector[static_cast<std::size_t>(std::min(11, static_cast<int>((std::atan2(d.y(), d.x()) + kPi) / (2 * kPi) * 12)))] = true;
+  }
+  hole.radius_measured = std::count(sector.begin(), sector.end(), true) >= 5;
+  hole.radius_m = hole.radius_measured ? fit_free_radius(edges, g.frame, g.frame.to2d(hole.center), r) : r;
+  hole.lines_across = static_cast<int>(std::set<int>(edge_lines.begin(), edge_lines.end()).size());
+  hole.edge_points = std::move(edges);
+  return hole;
+}
+
+/// The view's edge bias (mean free radius - r over measured holes, else the beam model) and
+/// the centres refitted with radius r + bias.
+void correct_edge_bias(const BoardGeometry& g, double r, const LidarDetectionOptions& options, BoardResult* res) {
+  double sum = 0.0;
+  int n = 0;
+  for (const LidarHole& h : res->holes) {
+    if (!h.radius_measured) continue;
+    sum += h.radius_m - r;
+    ++n;
+  }
+  double bias = 0.0;
+  if (n > 0) {
+    bias = sum / n;
+    res->edge_bias_source = "measured on " + std::to_string(n) + " hole(s)";
+  } else if (options.beam_divergence_rad > 0.0) {
+    bias = 0.25 * options.beam_divergence_rad * res->holes[0].center.norm();
+    res->edge_bias_source = "beam divergence model";
+  }
+  // A bias beyond the radius check's tolerance would have rejected the holes already.
+  bias = std::clamp(bias, -options.max_radius_error * r, options.max_radius_error * r);
+  res->edge_bias_m = bias;
+  if (bias == 0.0) return;
+  for (LidarHole& h : res->holes) {
+    h.center = fit_circle_center_in_plane(h.edge_points, g.frame.n, g.frame.origin, r + bias, h.center, &h.rms_m);
+    h.edge_bias_m = bias;
+  }
+}
+
+/// Occupancy edges carry no scan-line structure to vouch for them: the board must surround
+/// the fitted hole (>= 32 of 36 sectors of the ring 1.1-1.5 r hold points) and the hole must
+/// be empty (inside 0.8 r fewer than 2 % of the ring's points). Empty when it does.
+std::string check_hole_surroundings(const BoardGeometry& g, const LidarHole& hole, double r) {
+  constexpr int kSectors = 36;
+  std::array<bool, kSectors> hit{};
+  const Vec2 c = g.frame.to2d(hole.center);
+  int ring = 0, inside = 0;
+  for (const Vec2& p : g.q) {
+    const Vec2 d = p - c;
+    const double dn = d.norm();
+    if (dn < 0.8 * r) ++inside;
+    if (dn < 1.1 * r || dn > 1.5 * r) continue;
+    ++ring;
+    const double a = std::atan2(d.y(), d.x()) + kPi;
+    hit[static_cast<std::size_t>(std::min(kSectors - 1, static_cast<int>(a / (2 * kPi) * kSectors)))] = true;
+  }
+  const auto sectors = std::count(hit.begin(), hit.end(), true);
+  std::ostringstream s;
+  if (sectors < kSectors - 4) {
+    s << "the board surrounds the hole at " << hole.center.transpose() << " in " << sectors << " of " << kSectors
+      << " sectors (expected >= " << kSectors - 4 << ")";
+  } else if (inside > 0.02 * ring) {
+    s << "the hole at " << hole.center.transpose() << " holds " << inside << " points (expected empty)";
+  }
+  return s.str();
+}
+
+/// Fitted centres must reproduce the layout's pairwise distances. Empty when they do.
+std::string check_layout(const std::vector<LidarHole>& holes, const std::vector<Vec2>& layout, double r,
+                         const LidarDetectionOptions& options) {
+  const double tol = std::max(options.layout_tolerance_m, 0.25 * r);
+  for (std::size_t a = 0; a < holes.size(); ++a) {
+    for (std::size_t b = a + 1; b < holes.size(); ++b) {
+      const double fitted = (holes[a].center - holes[b].center).norm();
+      const double expected = (layout[a] - layout[b]).norm();
+      if (std::abs(fitted - expected) > tol) {
+        std::ostringstream s;
+        s << "holes " << a << " and " << b << " are " << fitted << " m apart, the layout says " << expected
+          << " m (tolerance " << tol << " m)";
+        return s.str();
+      }
+    }
+  }
+  return {};
+}
+
+std::string describe_profile(const BoardGeometry& g, bool has_ring, const EdgeSource& src,
+                             const std::vector<LidarHole>& holes) {
+  std::ostringstream s;
+  s << g.q.size() << " board points, spacing " << g.spacing << " m, "
+    << (has_ring ? "ring field" : src.use_lines ? "lines recovered from elevations" : "no scan lines");
+  if (src.use_lines && !holes.empty()) {
+    int lo = 1 << 30, hi = 0;
+    for (const LidarHole& h : holes) {
+      lo = std::min(lo, h.lines_across);
+      hi = std::max(hi, h.lines_across);
+    }
+    s << ", " << lo << "-" << hi << " lines across a hole";
+  }
+  return s.str();
+}
+
+/// Holes in layout order -> row-major, top-left first (contracts.md).
+std::vector<LidarHole> row_major(std::vector<LidarHole> holes, const std::vector<Vec2>& layout) {
   std::vector<std::size_t> order(layout.size());
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
@@ -633,8 +743,111 @@ BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>&
     return layout[a].x() < layout[b].x();
   });
   std::vector<LidarHole> sorted;
-  for (std::size_t k : order) sorted.push_back(res.holes[k]);
-  res.holes = std::move(sorted);
+  for (std::size_t k : order) sorted.push_back(std::move(holes[k]));
+  return sorted;
+}
+
+/// Hole detection and fitting on one board segment C (board indices into pts).
+BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>& board,
+                           const std::vector<int>& rings, bool has_ring,
+                           const core::TargetSpec& target, const LidarDetectionOptions& options) {
+  BoardResult res;
+  const double r = target.radius_m;
+  if (static_cast<int>(board.size()) < options.min_board_points) {
+    res.reason = "plane segment has " + std::to_string(board.size()) + " points, fewer than " +
+                 std::to_string(options.min_board_points);
+    return res;
+  }
+  res.plane = fit_plane(pts, board);
+  const BoardGeometry g = board_geometry(pts, board, res.plane, options.up_lidar);
+  const std::vector<Vec2> layout = target_layout(target);
+  if (std::string why = check_board_extent(g.q, layout, target); !why.empty()) {
+    res.reason = std::move(why);
+    return res;
+  }
+  const double cell = options.grid_cell_m > 0 ? options.grid_cell_m : std::clamp(r / 12.0, 0.004, 0.03);
+  std::vector<HoleCandidate> cand;
+  for (const HoleCandidate& c : find_empty_discs(g.q, r, cell)) {
+    if (enclosed(g.q, c.center, r)) cand.push_back(c);
+  }
+  const std::vector<Vec2> init = match_layout(layout, cand, r, &res.matched);
+  if (init.empty()) {
+    res.reason = "no enclosed empty disc of radius " + std::to_string(r) + " m in the layout (" +
+                 std::to_string(cand.size()) + " candidate(s))";
+    return res;
+  }
+  const EdgeSource src = choose_edge_source(pts, board, rings, has_ring, options);
+  if (!src.reason.empty()) {
+    res.reason = src.reason;
+    return res;
+  }
+  std::vector<Vec3> line_edges;
+  std::vector<int> line_ids;
+  if (src.use_lines) line_edges = scan_line_edges(pts, board, src.lines, g.frame, options, &line_ids);
+  bool fell_back = false;
+  for (std::size_t h = 0; h < init.size(); ++h) {
+    Vec2 c2 = init[h];
+    std::vector<int> edge_lines;
+    std::vector<Vec3> edges = hole_edges(line_edges, line_ids, g, r, options, src.use_lines, &c2, &edge_lines, &fell_back);
+    if (static_cast<int>(edges.size()) < options.min_edge_points) {
+      res.reason = "hole " + std::to_string(h) + ": " + std::to_string(edges.size()) + " edge points, fewer than " +
+                   std::to_string(options.min_edge_points);
+      return res;
+    }
+    res.holes.push_back(fit_hole(std::move(edges), edge_lines, g, c2, r));
+    // The fit refines the empty disc it started from; a centre that wandered off it was
+    // pulled by edges of something else.
+    const double moved = (g.frame.to2d(res.holes.back().center) - init[h]).norm();
+    if (moved > 0.5 * r) {
+      std::ostringstream s;
+      s << "hole " << h << ": the fitted centre moved " << moved << " m from the empty disc (limit " << 0.5 * r << " m)";
+      res.reason = s.str();
+      res.holes.clear();
+      return res;
+    }
+  }
+  // Holes of this target: the free radius and the residual must agree with the known radius
+  // (rejects gaps, windows and shadows that happen to be empty discs).
+  for (std::size_t h = 0; h < res.holes.size(); ++h) {
+    const LidarHole& hole = res.holes[h];
+    if (std::abs(hole.radius_m - r) > options.max_radius_error * r || hole.rms_m > options.max_rms_fraction * r) {
+      std::ostringstream s;
+      s << "hole " << h << ": fitted radius " << hole.radius_m << " m (rms " << hole.rms_m
+        << " m) does not match the target radius " << r << " m";
+      res.reason = s.str();
+      res.holes.clear();
+      return res;
+    }
+  }
+  if (options.correct_edge_bias) correct_edge_bias(g, r, options, &res);
+  if (!src.use_lines || fell_back) {
+    for (const LidarHole& hole : res.holes) {
+      if (std::string why = check_hole_surroundings(g, hole, r); !why.empty()) {
+        res.reason = std::move(why);
+        res.holes.clear();
+        return res;
+      }
+    }
+  }
+  if (std::string why = check_layout(res.holes, layout, r, options); !why.empty()) {
+    res.reason = std::move(why);
+    res.holes.clear();
+    return res;
+  }
+  for (LidarHole& hole : res.holes) {
+    res.score += (std::abs(hole.radius_m - r) + hole.rms_m) / r / static_cast<double>(init.size());
+    hole.circle_points = sample_circle(hole.center, hole.normal, r, options.circle_step_deg);
+  }
+  res.method = src.method;
+  if (src.use_lines) {
+    int fewest = 1 << 30;
+    for (const LidarHole& hole : res.holes) fewest = std::min(fewest, hole.lines_across);
+    // 2-4 lines across a hole: the centre rests on a few chords of the known radius.
+    if (fewest >= 1 && fewest <= 4) res.method = "sparse_lines" + src.method.substr(src.method.find(' '));
+  }
+  if (fell_back) res.method += "+occupancy";
+  res.profile = describe_profile(g, has_ring, src, res.holes);
+  res.holes = row_major(std::move(res.holes), layout);
   res.ok = true;
   return res;
 }
@@ -656,6 +869,8 @@ std::string LidarDetectionOptions::validate() const {
   if (!(max_rms_fraction > 0)) s << "max_rms_fraction must be > 0; ";
   if (!(circle_step_deg > 0 && circle_step_deg <= 90)) s << "circle_step_deg must be in (0, 90]; ";
   if (up_lidar.norm() < 1e-6) s << "up_lidar must be non-zero; ";
+  if (!(beam_divergence_rad >= 0 && beam_divergence_rad < 0.1)) s << "beam_divergence_rad = " << beam_divergence_rad << " must be in [0, 0.1); ";
+  if (!(layout_tolerance_m > 0)) s << "layout_tolerance_m = " << layout_tolerance_m << " must be > 0; ";
   return s.str();
 }
 
@@ -760,6 +975,9 @@ LidarTargetDetection detect_target_in_cloud(const cloud::Cloud& cloud, bool has_
     det.plane = b.plane;
     det.holes = b.holes;
     det.edge_method = b.method;
+    det.cloud_profile = b.profile;
+    det.edge_bias_m = b.edge_bias_m;
+    det.edge_bias_source = b.edge_bias_source;
     for (int i : board) det.board_points.push_back(pts[static_cast<std::size_t>(i)]);
   };
 
@@ -919,6 +1137,17 @@ LidarTargetDetection detect_target_in_cloud(const cloud::Cloud& cloud, bool has_
   if (best.ok) {
     finish(best, best_board);
     return det;
+  }
+  // Noisy dense clouds: normals over a few 5 cm voxels scatter by more than the smoothness
+  // threshold (2 cm noise over 12 neighbours ~10 cm apart: ~10 deg) and region growing splits
+  // the board. One retry with coarser voxels and twice the threshold; every check on the
+  // board and its holes still applies.
+  if (opt.search_voxel_m < 0.09) {
+    LidarDetectionOptions coarser = options;
+    coarser.search_voxel_m = 2.0 * opt.search_voxel_m;
+    coarser.smoothness_deg = 2.0 * opt.smoothness_deg;
+    LidarTargetDetection again = detect_target_in_cloud(cloud, has_ring, target, coarser);
+    if (again.ok) return again;
   }
   det.reason = "no board with the target's holes found among " + std::to_string(segments.size()) +
                " planar segments (last: " + last_reason + ")";

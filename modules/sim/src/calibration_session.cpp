@@ -11,6 +11,7 @@
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/core/tilt_rig.hpp"
 #include "rgbdt/core/transform.hpp"
+#include "rgbdt/sim/multibeam_sim.hpp"
 #include "session_io.hpp"
 
 namespace rgbdt::sim {
@@ -89,6 +90,115 @@ bool board_in_sweep(const core::TargetSpec& target, const Eigen::Isometry3d& T_l
   return true;
 }
 
+
+bool is_spinning(LidarKind k) {
+  return k == LidarKind::kSpinning16 || k == LidarKind::kSpinning32 || k == LidarKind::kSpinning64;
+}
+
+int spinning_rings(LidarKind k) { return k == LidarKind::kSpinning16 ? 16 : k == LidarKind::kSpinning32 ? 32 : 64; }
+
+// Half of the azimuth sector simulated for a spinning LIDAR: the board poses lie within
+// +-10 deg of +x; the sector also covers the cloth and some ground around them.
+constexpr double kSpinningHalfAzimuthRad = 40.0 * kDeg;
+
+// Is the whole board (with a margin) where the LIDAR of `kind` looks, so every hole is scanned?
+bool board_in_lidar_view(const CalibrationSessionOptions& options, const core::TargetSpec& target,
+                         const Eigen::Isometry3d& T_lidar_board, const TiltProfile& profile) {
+  if (options.lidar == LidarKind::kTilt) return board_in_sweep(target, T_lidar_board, profile);
+  const Eigen::Vector2d half = 0.5 * target.board_size_m.value_or(Eigen::Vector2d(1.2, 1.2));
+  for (const double sx : {-1.0, 1.0}) {
+    for (const double sy : {-1.0, 1.0}) {
+      const Eigen::Vector3d p = T_lidar_board * Eigen::Vector3d(sx * half.x(), sy * half.y(), 0.0);
+      if (is_spinning(options.lidar)) {
+        const SpinningLidarOptions s = SpinningLidarOptions::preset(spinning_rings(options.lidar));
+        const double el = std::atan2(p.z(), std::hypot(p.x(), p.y())) / kDeg;
+        if (el < s.fov_down_deg + 1.0 || el > s.fov_up_deg - 1.0) return false;
+        if (std::abs(std::atan2(p.y(), p.x())) > kSpinningHalfAzimuthRad - 5.0 * kDeg) return false;
+      } else {
+        const double off_axis = std::acos(std::clamp(p.normalized().x(), -1.0, 1.0)) / kDeg;
+        if (off_axis > 0.5 * DenseLidarOptions{}.fov_deg - 1.0) return false;
+      }
+    }
+  }
+  return true;
+}
+
+// Draws board poses until all holes are fully visible to both cameras and scanned by the LIDAR.
+Eigen::Isometry3d draw_board_pose(const CalibrationSessionOptions& options, const core::TargetSpec& target,
+                                  const RigSpec& rig, TiltLidarOptions* lidar, std::mt19937_64* pose_rng,
+                                  int* attempts) {
+  const core::PinholeCamera rgb_camera(rig.rgb_intrinsics);
+  const core::PinholeCamera thermal_camera(rig.thermal_intrinsics);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  std::uniform_real_distribution<double> dist(options.min_distance_m, options.max_distance_m);
+  for (int attempt = 0; attempt < 2000; ++attempt) {
+    ++*attempts;
+    const double d = dist(*pose_rng);
+    const double az = 10.0 * kDeg * uni(*pose_rng);
+    const double el = 6.0 * kDeg * uni(*pose_rng);
+    const Eigen::Vector3d c = d * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+    const Eigen::Matrix3d R = facing_origin(c) * Eigen::AngleAxisd(35.0 * kDeg * uni(*pose_rng), Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(20.0 * kDeg * uni(*pose_rng), Eigen::Vector3d::UnitX()) *
+                              Eigen::AngleAxisd(25.0 * kDeg * uni(*pose_rng), Eigen::Vector3d::UnitZ());
+    const Eigen::Isometry3d T_lidar_board = core::make_transform(R, c);
+    lidar->profile.start_time_s = options.start_time_s;
+    if (!board_in_lidar_view(options, target, T_lidar_board, lidar->profile)) continue;
+    const Scene scene = make_calibration_scene(target, T_lidar_board, options.cloth_gap_m, options.time_of_day);
+    if (holes_visible(scene, target, T_lidar_board, rgb_camera, rig.T_rgb_lidar) &&
+        holes_visible(scene, target, T_lidar_board, thermal_camera, rig.T_thermal_lidar)) {
+      return T_lidar_board;
+    }
+  }
+  throw std::invalid_argument("calibration session: no board pose with all holes visible in both cameras and the " +
+                              to_string(options.lidar) + " LIDAR for distances [" + std::to_string(options.min_distance_m) +
+                              ", " + std::to_string(options.max_distance_m) + "] m; use a smaller target or range");
+}
+
+// The LIDAR cloud of view i (board scene at time t_view) from the LIDAR of options.lidar.
+cloud::Cloud simulate_view_cloud(const CalibrationSessionOptions& options, const TiltLidarOptions& lidar,
+                                 const Scene& scene, int i, double t_view) {
+  std::mt19937_64 lidar_rng_seed(options.seed * 1000003 + static_cast<std::uint64_t>(i) * 3 + 0);
+  const double scale = options.noise_scale;
+  if (options.lidar == LidarKind::kTilt) {
+    TiltLidarOptions tilt = lidar;
+    tilt.profile.start_time_s = t_view;
+    if (options.range_noise_m >= 0.0) tilt.range_sigma_m = options.range_noise_m;
+    TiltLidarSimulator simulator(tilt, lidar_rng_seed());
+    const auto identity = [](double) { return Eigen::Isometry3d::Identity(); };
+    return assemble_cloud(tilt, simulator.scans(scene, t_view, t_view + options.tilt_duration_s, identity));
+  }
+  if (is_spinning(options.lidar)) {
+    SpinningLidarOptions s = SpinningLidarOptions::preset(spinning_rings(options.lidar));
+    s.beam.range_sigma_m = options.range_noise_m >= 0.0 ? options.range_noise_m : scale * s.beam.range_sigma_m;
+    if (!lidar.mixed_pixels) s.beam.divergence_rad = 0.0;
+    return simulate_spinning(scene, s, kSpinningHalfAzimuthRad, lidar_rng_seed());
+  }
+  DenseLidarOptions d;
+  d.duration_s = options.dense_duration_s;
+  d.beam.range_sigma_m = options.range_noise_m >= 0.0 ? options.range_noise_m : scale * d.beam.range_sigma_m;
+  if (!lidar.mixed_pixels) d.beam.divergence_rad = 0.0;
+  return simulate_dense(scene, d, lidar_rng_seed());
+}
+
+TiltLidarOptions session_tilt_lidar(const CalibrationSessionOptions& options, const RigSpec& rig) {
+  TiltLidarOptions lidar = rig.lidar;
+  lidar.profile.phi_start_rad = -options.tilt_half_range_deg * kDeg;
+  lidar.profile.phi_end_rad = options.tilt_half_range_deg * kDeg;
+  lidar.profile.tilt_duration_s = options.tilt_duration_s;
+  return lidar;
+}
+
+CalibrationViewTruth view_truth(const core::TargetSpec& target, const Eigen::Isometry3d& T_lidar_board, double t_view) {
+  CalibrationViewTruth truth;
+  truth.T_lidar_board = T_lidar_board;
+  for (const Eigen::Vector2d& c : hole_centers(target)) {
+    truth.hole_centers_lidar.push_back(T_lidar_board * Eigen::Vector3d(c.x(), c.y(), 0.0));
+  }
+  truth.normal_lidar = T_lidar_board.linear().col(2);
+  truth.time_s = t_view;
+  return truth;
+}
+
 }  // namespace
 
 std::string CalibrationSessionOptions::validate() const {
@@ -104,8 +214,53 @@ std::string CalibrationSessionOptions::validate() const {
   else if (!(tilt_duration_s > 0.0)) os << "tilt_duration_s " << tilt_duration_s << " must be positive";
   else if (!(tilt_half_range_deg > 5.0 && tilt_half_range_deg < 80.0))
     os << "tilt_half_range_deg " << tilt_half_range_deg << " must be in (5, 80)";
+  else if (!(range_noise_m < 0.5)) os << "range_noise_m " << range_noise_m << " must be < 0.5 (< 0: the LIDAR's own)";
+  else if (!(dense_duration_s > 0.0 && dense_duration_s <= 60.0))
+    os << "dense_duration_s " << dense_duration_s << " must be in (0, 60]";
   else if (const std::string r = rig.validate(); !r.empty()) os << r;
   return os.str();
+}
+
+std::string to_string(LidarKind kind) {
+  switch (kind) {
+    case LidarKind::kTilt: return "tilt";
+    case LidarKind::kSpinning16: return "spinning16";
+    case LidarKind::kSpinning32: return "spinning32";
+    case LidarKind::kSpinning64: return "spinning64";
+    case LidarKind::kDense: return "dense";
+  }
+  return "unknown";
+}
+
+LidarKind lidar_kind_from_string(const std::string& name) {
+  for (const LidarKind k : {LidarKind::kTilt, LidarKind::kSpinning16, LidarKind::kSpinning32, LidarKind::kSpinning64,
+                            LidarKind::kDense}) {
+    if (to_string(k) == name) return k;
+  }
+  throw std::invalid_argument("LIDAR kind '" + name + "' must be one of tilt, spinning16, spinning32, spinning64, dense");
+}
+
+std::vector<SimulatedLidarView> simulate_lidar_views(const CalibrationSessionOptions& options) {
+  if (const std::string why = options.validate(); !why.empty()) {
+    throw std::invalid_argument("calibration session options: " + why);
+  }
+  const RigSpec rig = detail::scale_noise(options.rig, options.noise_scale);
+  const core::TargetSpec target = calibration_target(options.holes, options.hole_radius_m);
+  TiltLidarOptions lidar = session_tilt_lidar(options, rig);
+  std::mt19937_64 pose_rng(options.seed * 7919 + 11);
+  int attempts = 0;
+  std::vector<SimulatedLidarView> out;
+  for (int i = 0; i < options.views; ++i) {
+    const Eigen::Isometry3d T_lidar_board = draw_board_pose(options, target, rig, &lidar, &pose_rng, &attempts);
+    const Scene scene = make_calibration_scene(target, T_lidar_board, options.cloth_gap_m, options.time_of_day);
+    const double t_view = options.start_time_s + 10.0 * i;
+    SimulatedLidarView v;
+    v.truth = view_truth(target, T_lidar_board, t_view);
+    v.cloud = simulate_view_cloud(options, lidar, scene, i, t_view);
+    v.has_ring = options.lidar != LidarKind::kDense;
+    out.push_back(std::move(v));
+  }
+  return out;
 }
 
 core::TargetSpec calibration_target(int holes, double radius_m) {
@@ -174,14 +329,8 @@ CalibrationSessionResult write_calibration_session(const std::string& out_dir,
   result.target = calibration_target(options.holes, options.hole_radius_m);
   const core::TargetSpec& target = result.target;
 
-  TiltLidarOptions lidar = rig.lidar;
-  lidar.profile.phi_start_rad = -options.tilt_half_range_deg * kDeg;
-  lidar.profile.phi_end_rad = options.tilt_half_range_deg * kDeg;
-  lidar.profile.tilt_duration_s = options.tilt_duration_s;
-
+  TiltLidarOptions lidar = session_tilt_lidar(options, rig);
   std::mt19937_64 pose_rng(options.seed * 7919 + 11);
-  std::uniform_real_distribution<double> uni(-1.0, 1.0);
-  std::uniform_real_distribution<double> dist(options.min_distance_m, options.max_distance_m);
 
   core::CalibrationSession session;
   session.directory = dir.string();
@@ -190,42 +339,16 @@ CalibrationSessionResult write_calibration_session(const std::string& out_dir,
   session.cameras["thermal"].intrinsics = (dir / "thermal.yaml").string();
 
   for (int i = 0; i < options.views; ++i) {
-    // Draw board poses until all holes are fully visible to both cameras and scanned.
-    Eigen::Isometry3d T_lidar_board = Eigen::Isometry3d::Identity();
-    bool found = false;
-    for (int attempt = 0; attempt < 2000 && !found; ++attempt) {
-      ++result.pose_attempts;
-      const double d = dist(pose_rng);
-      const double az = 10.0 * kDeg * uni(pose_rng);
-      const double el = 6.0 * kDeg * uni(pose_rng);
-      const Eigen::Vector3d c = d * Eigen::Vector3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
-      const Eigen::Matrix3d R = facing_origin(c) * Eigen::AngleAxisd(35.0 * kDeg * uni(pose_rng), Eigen::Vector3d::UnitY()) *
-                                Eigen::AngleAxisd(20.0 * kDeg * uni(pose_rng), Eigen::Vector3d::UnitX()) *
-                                Eigen::AngleAxisd(25.0 * kDeg * uni(pose_rng), Eigen::Vector3d::UnitZ());
-      T_lidar_board = core::make_transform(R, c);
-      lidar.profile.start_time_s = options.start_time_s;
-      if (!board_in_sweep(target, T_lidar_board, lidar.profile)) continue;
-      const Scene scene = make_calibration_scene(target, T_lidar_board, options.cloth_gap_m, options.time_of_day);
-      found = holes_visible(scene, target, T_lidar_board, rgb_camera, rig.T_rgb_lidar) &&
-              holes_visible(scene, target, T_lidar_board, thermal_camera, rig.T_thermal_lidar);
-    }
-    if (!found) {
-      throw std::invalid_argument("calibration session: no board pose with all holes visible in both cameras for "
-                                  "distances [" + std::to_string(options.min_distance_m) + ", " +
-                                  std::to_string(options.max_distance_m) + "] m; use a smaller target or range");
-    }
+    const Eigen::Isometry3d T_lidar_board =
+        draw_board_pose(options, target, rig, &lidar, &pose_rng, &result.pose_attempts);
     const Scene scene = make_calibration_scene(target, T_lidar_board, options.cloth_gap_m, options.time_of_day);
     const double t_view = options.start_time_s + 10.0 * i;  // the target is moved every 10 s
     lidar.profile.start_time_s = t_view;
 
     // Independent random streams per view and sensor: the same seed gives the same session.
-    std::mt19937_64 lidar_rng_seed(options.seed * 1000003 + static_cast<std::uint64_t>(i) * 3 + 0);
     std::mt19937_64 rgb_rng(options.seed * 1000003 + static_cast<std::uint64_t>(i) * 3 + 1);
     std::mt19937_64 thermal_rng(options.seed * 1000003 + static_cast<std::uint64_t>(i) * 3 + 2);
-    TiltLidarSimulator simulator(lidar, lidar_rng_seed());
-    const auto identity = [](double) { return Eigen::Isometry3d::Identity(); };
-    const std::vector<RawScan> scans = simulator.scans(scene, t_view, t_view + options.tilt_duration_s, identity);
-    const cloud::Cloud cloud = assemble_cloud(lidar, scans);
+    const cloud::Cloud cloud = simulate_view_cloud(options, lidar, scene, i, t_view);
 
     RgbCameraOptions rgb_options = rig.rgb;
     rgb_options.render.supersampling = options.supersampling;
@@ -240,7 +363,11 @@ CalibrationSessionResult write_calibration_session(const std::string& out_dir,
     view.cloud = (dir / "clouds" / (name + ".pcd")).string();
     view.images["rgb"] = (dir / "rgb" / (name + ".png")).string();
     view.images["thermal"] = (dir / "thermal" / (name + ".png")).string();
-    cloud::save_pcd(view.cloud, cloud, cloud::PcdFormat::kBinary);
+    if (options.lidar == LidarKind::kDense) {
+      save_pcd_without_ring(view.cloud, cloud);
+    } else {
+      cloud::save_pcd(view.cloud, cloud, cloud::PcdFormat::kBinary);
+    }
     detail::write_png(view.images["rgb"], rgb);
     detail::write_png(view.images["thermal"], thermal);
 
@@ -256,13 +383,7 @@ CalibrationSessionResult write_calibration_session(const std::string& out_dir,
     view.lidar_seed = T_lidar_board * Eigen::Vector3d(on_board.x(), on_board.y(), 0.0);
     session.views.push_back(view);
 
-    CalibrationViewTruth truth;
-    truth.T_lidar_board = T_lidar_board;
-    for (const Eigen::Vector2d& c : hole_centers(target)) {
-      truth.hole_centers_lidar.push_back(T_lidar_board * Eigen::Vector3d(c.x(), c.y(), 0.0));
-    }
-    truth.normal_lidar = T_lidar_board.linear().col(2);
-    truth.time_s = t_view;
+    const CalibrationViewTruth truth = view_truth(target, T_lidar_board, t_view);
     result.views.push_back(truth);
     core::log_info("sim: calibration view ", i + 1, "/", options.views, " at ", centre.norm(), " m, ", cloud.size(),
                    " points");

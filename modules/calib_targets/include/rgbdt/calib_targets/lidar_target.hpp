@@ -24,7 +24,10 @@
 namespace rgbdt::calib_targets {
 
 enum class LidarEdgeMethod {
-  kAuto,       ///< scan lines (ring, else recovered from elevation); occupancy if that fails
+  /// Measured from the cloud: scan lines when the board's points lie on lines (ring field,
+  /// else lines recovered from the elevations), "sparse" when only 2-4 lines cross a hole,
+  /// occupancy for dense clouds without lines (non-repetitive LIDARs, accumulated clouds).
+  kAuto,
   kScanLines,  ///< Algorithm 2: theta discontinuities along each scan line
   kOccupancy,  ///< inner border of the board's in-plane occupancy around each empty disc
 };
@@ -67,6 +70,19 @@ struct LidarDetectionOptions {
   double max_radius_error = 0.25;
   double max_rms_fraction = 0.25;
   double circle_step_deg = 1.0;  ///< Algorithm 3 output resolution delta-theta
+  /// Edge bias correction: a beam of finite divergence that partly hits the rim returns a
+  /// mixed range, so rim points leave the board and holes look wider (and the half-step
+  /// correction leaves a residual). The bias (mean free radius - known radius over the holes
+  /// whose edges surround them) is estimated per view and the centres are refitted with the
+  /// known radius plus the bias, so that chords of a few scan lines do not pull a centre
+  /// towards them.
+  bool correct_edge_bias = true;
+  /// Full beam divergence [rad] of the LIDAR, when known: gives the bias (half the footprint
+  /// at the hole's range) of views where no hole is surrounded by edges. 0 = unknown.
+  double beam_divergence_rad = 0.0;
+  /// Fitted hole centres must reproduce the layout's pairwise distances within
+  /// max(layout_tolerance_m, 0.25 r); else the board is rejected (never a wrong target).
+  double layout_tolerance_m = 0.03;
 
   /// Empty when usable, else the reason naming the value.
   std::string validate() const;
@@ -82,6 +98,10 @@ struct LidarHole {
   std::vector<Eigen::Vector3d> edge_points;    ///< detected edge points (Algorithm 2) [m]
   std::vector<Eigen::Vector3d> circle_points;  ///< generated circle, known radius (Algorithm 3)
   double rms_m = 0.0;  ///< RMS distance of the edge points to the known-radius circle [m]
+  /// Edge bias applied to this hole's centre fit [m] (the centre is fitted with radius
+  /// r + edge_bias_m; circle_points keep the known radius r).
+  double edge_bias_m = 0.0;
+  int lines_across = 0;  ///< scan lines with edges on this hole (0 for occupancy edges)
 };
 
 struct LidarTargetDetection {
@@ -90,7 +110,15 @@ struct LidarTargetDetection {
   Eigen::Vector4d plane = Eigen::Vector4d::Zero();  ///< n.x + d = 0, n towards the sensor
   std::vector<LidarHole> holes;  ///< in layout order (row-major, top-left first)
   std::vector<Eigen::Vector3d> board_points;  ///< the plane segment C (Algorithm 2, line 6)
-  std::string edge_method;  ///< "scan_lines (ring)", "scan_lines (recovered)" or "occupancy"
+  /// How the edges were found: "scan_lines (ring)", "scan_lines (recovered)", "sparse_lines
+  /// (ring)" / "sparse_lines (recovered)" (2-4 lines across a hole), "occupancy" (no lines),
+  /// with "+occupancy" when some holes fell back to it.
+  std::string edge_method;
+  /// What the detector measured to choose the method, e.g. "12034 board points, spacing
+  /// 0.011 m, ring field, 3-5 lines across a hole".
+  std::string cloud_profile;
+  double edge_bias_m = 0.0;       ///< the view's edge bias applied to every hole [m]
+  std::string edge_bias_source;   ///< "measured on N hole(s)", "beam divergence model", "none"
 };
 
 /// Detects the circle target. `has_ring` says whether the cloud's ring field is valid

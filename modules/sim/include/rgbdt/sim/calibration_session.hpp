@@ -8,11 +8,26 @@
 #include <string>
 #include <vector>
 
+#include "rgbdt/cloud/point_types.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/sim/rig.hpp"
 #include "rgbdt/sim/scene.hpp"
 
 namespace rgbdt::sim {
+
+/// The LIDAR that scans the target (multibeam_sim.hpp for the models).
+enum class LidarKind {
+  kTilt,        ///< the rig's tilting 2D Hokuyo, one tilt per view (ring = scan index)
+  kSpinning16,  ///< VLP-16 like, one revolution per view (ring = beam)
+  kSpinning32,  ///< 32 beams over +-15 deg
+  kSpinning64,  ///< OS1-64 like
+  kDense,       ///< Livox-like non-repetitive rosette accumulated over dense_duration_s, no ring field
+};
+
+/// "tilt", "spinning16", "spinning32", "spinning64", "dense".
+std::string to_string(LidarKind kind);
+/// Inverse of to_string; throws std::invalid_argument naming the value and the choices.
+LidarKind lidar_kind_from_string(const std::string& name);
 
 struct CalibrationSessionOptions {
   int views = 10;
@@ -31,6 +46,11 @@ struct CalibrationSessionOptions {
   TimeOfDay time_of_day = TimeOfDay::kDay;
   double start_time_s = 100.0;  ///< session clock at view 0 [s]
   RigSpec rig;                  ///< true rig; noise levels are scaled by noise_scale
+  LidarKind lidar = LidarKind::kTilt;
+  /// LIDAR range noise sigma [m]; < 0: the LIDAR kind's own (tilt 0.01 m, spinning 0.01 m,
+  /// dense 0.02 m) times noise_scale.
+  double range_noise_m = -1.0;
+  double dense_duration_s = 3.0;  ///< accumulation time of a dense cloud [s] (100k points/s)
   std::string validate() const;
 };
 
@@ -48,6 +68,17 @@ struct CalibrationSessionResult {
   std::vector<CalibrationViewTruth> views;
   int pose_attempts = 0;  ///< board poses drawn to find views that pass the visibility checks
 };
+
+/// The LIDAR cloud of one simulated view and its truth, without camera images.
+struct SimulatedLidarView {
+  CalibrationViewTruth truth;
+  cloud::Cloud cloud;
+  bool has_ring = true;  ///< false for kinds without scan lines (the PCD has no ring field)
+};
+
+/// The views of write_calibration_session (same poses and clouds for the same options),
+/// without rendering or writing anything: for detector tests and studies.
+std::vector<SimulatedLidarView> simulate_lidar_views(const CalibrationSessionOptions& options);
 
 /// Board frame hole centres (row-major, top-left first as seen from the sensors) and board
 /// size of the target with `holes` holes of radius_m.
