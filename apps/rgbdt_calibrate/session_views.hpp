@@ -37,7 +37,8 @@ struct SessionDetections {
 
 /// PNG options of the overlays: zlib level 1. The overlays are diagnostics of a few MB
 /// each; the default level 3 costs several times the encoding time for ~10 % smaller files.
-inline const std::vector<int> kOverlayPngParams = {cv::IMWRITE_PNG_COMPRESSION, 1};
+inline const std::vector<int> kOverlayPngParams = {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY,
+                                                   cv::IMWRITE_PNG_STRATEGY_RLE};
 
 /// The view of the edge alignment from one view's LIDAR and image detections (both ok):
 /// every LIDAR circle point and image edge point, and the paired hole centres/ellipses for
