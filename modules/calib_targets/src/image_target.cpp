@@ -170,9 +170,12 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
 
 /// Chooses one candidate per layout hole: an affine map board -> image consistent with the
 /// layout, board y pointing up in the image. Returns candidate indices in layout order.
+/// With `seed_board_half` set, a selection must also put `seed` on the board: mapped back
+/// through the affine fit, within these half extents of the board centre.
 std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
                                     const std::vector<Candidate>& cand, const Eigen::Vector2d& up,
-                                    std::string* reason) {
+                                    std::string* reason, const std::optional<Eigen::Vector2d>& seed = {},
+                                    const Eigen::Vector2d& seed_board_half = Eigen::Vector2d::Zero()) {
   const std::size_t n = layout.size();
   if (cand.size() < n) {
     *reason = "found " + std::to_string(cand.size()) + " hole-like region(s), the target has " +
@@ -205,6 +208,12 @@ std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
       const Eigen::Vector2d ax = A.row(0).transpose(), ay = A.row(1).transpose();
       if (ay.dot(up) <= 0) return;  // board y must point up in the image
       if (ax.x() * ay.y() - ax.y() * ay.x() >= 0) return;  // x right of y (image v is down)
+      if (seed) {
+        Eigen::Matrix2d L;
+        L << ax, ay;
+        const Eigen::Vector2d board = L.inverse() * (*seed - A.row(2).transpose());
+        if (std::abs(board.x()) > seed_board_half.x() || std::abs(board.y()) > seed_board_half.y()) return;
+      }
       const double cost = rms / size;
       if (cost < best) {
         best = cost;
@@ -222,7 +231,8 @@ std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
   };
   rec(0);
   if (best_pick.empty() || best > 0.3) {
-    *reason = "no set of " + std::to_string(n) + " holes matches the target's layout";
+    *reason = "no set of " + std::to_string(n) + " holes matches the target's layout" +
+              (seed ? " with the seed on the board" : "");
     return {};
   }
   return best_pick;
@@ -359,15 +369,32 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
 
   std::vector<Candidate> chosen;
   if (seed_px) {
-    if (layout.size() != 1) {
-      det.reason = "a seed pixel is only used for single-hole targets";
-      return det;
-    }
     const Eigen::Vector2i s = seed_px->array().round().cast<int>();
     if (s.x() < 0 || s.y() < 0 || s.x() >= f.cols || s.y() >= f.rows) {
       det.reason = "seed (" + std::to_string(s.x()) + ", " + std::to_string(s.y()) + ") outside the image";
       return det;
     }
+  }
+  if (seed_px && layout.size() > 1) {
+    // A multi-hole board: the seed (anywhere on the board) picks the layout match that has
+    // it on the board; the candidates nearest the seed are tried first.
+    auto cand = find_candidates(f, min_axis, max_axis, options);
+    const auto dist = [&](const Candidate& c) {
+      return std::hypot(c.ellipse.center.x - seed_px->x(), c.ellipse.center.y - seed_px->y());
+    };
+    std::stable_sort(cand.begin(), cand.end(), [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
+    Eigen::Vector2d half = Eigen::Vector2d::Zero();
+    for (const auto& h : layout) half = half.cwiseMax(h.cwiseAbs());
+    half.array() += 2.0 * target.radius_m;
+    if (target.board_size_m) half = 0.5 * *target.board_size_m;
+    std::string why;
+    const auto pick = match_layout_image(layout, cand, options.up_image.normalized(), &why, *seed_px, half);
+    if (pick.empty()) {
+      det.reason = why;
+      return det;
+    }
+    for (int i : pick) chosen.push_back(cand[static_cast<std::size_t>(i)]);
+  } else if (seed_px) {
     // The seed picks among the hole candidates the automatic search finds: the smallest
     // one that contains it. Only when none does, the seed's own region (grown with a loose
     // threshold) gives the hole; on blurred thermal edges that region can leak out of the
@@ -392,7 +419,7 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
       if (best >= 0) chosen.push_back(cand[static_cast<std::size_t>(best)]);
     }
   }
-  if (seed_px && chosen.empty()) {
+  if (seed_px && chosen.empty() && layout.size() == 1) {
     const Eigen::Vector2i s = seed_px->array().round().cast<int>();
     // Contrast from the seed's region grown with a loose threshold: its ring gives the board.
     cv::Mat region;
@@ -431,7 +458,7 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
     const Eigen::Vector2i s(static_cast<int>(std::lround(c.ellipse.center.x)),
                             static_cast<int>(std::lround(c.ellipse.center.y)));
     // Algorithm 1 from the hole's centre (the automatic seed) or the clicked seed.
-    const Eigen::Vector2i seed = seed_px ? Eigen::Vector2i(seed_px->array().round().cast<int>()) : s;
+    const Eigen::Vector2i seed = seed_px && layout.size() == 1 ? Eigen::Vector2i(seed_px->array().round().cast<int>()) : s;
     // Algorithm 1 and the edge refinement within 2.5 semi-axes of the hole; the whole image
     // only when the region reaches that window's border (a leak, or a seed outside it).
     const double reach = 2.5 * 0.5 * std::max(c.ellipse.size.width, c.ellipse.size.height) + options.edge_search_px + 3;
