@@ -290,7 +290,8 @@ int main(int argc, char** argv) {
           if (image.empty()) throw core::Error(cv.image_paths[k], "cannot read the image for the overlay");
           core::TempOutput overlay((out / overlay_name(name, cv.session_index[k])).string());
           if (!cv::imwrite(overlay.temp_path(), ext::draw_overlay(image, cv.views[k], camera, r.T_camera_lidar_initial,
-                                                                  r.T_camera_lidar)))
+                                                                  r.T_camera_lidar),
+                           rgbdt::calibrate::kOverlayPngParams))
             throw core::Error(overlay.path(), "cannot write the overlay PNG");
           overlay.commit();
         }

@@ -10,8 +10,6 @@
 
 namespace rgbdt::calibrate {
 
-namespace {
-
 extrinsics::TargetView make_target_view(const calib_targets::LidarTargetDetection& lidar,
                                         const calib_targets::ImageTargetDetection& image,
                                         const core::TargetSpec& target, const cv::Size& image_size,
@@ -38,8 +36,6 @@ extrinsics::TargetView make_target_view(const calib_targets::LidarTargetDetectio
   }
   return v;
 }
-
-}  // namespace
 
 SessionDetections detect_session_views(const core::CalibrationSession& session,
                                        const std::map<std::string, core::PinholeCamera>& cameras,

@@ -75,13 +75,31 @@ bool levels(const cv::Mat& f, const cv::RotatedRect& e, double* inside, double* 
   return true;
 }
 
-/// Elliptical dark or bright blobs of a plausible size (MSER on the 8-bit normalised image).
+/// Downsampling factor of the candidate search: a power of two that keeps the smallest
+/// plausible hole at least kMinCoarseAxisPx across (semi-axis) at the coarse level, at most 8.
+int coarse_factor(double min_axis_px) {
+  constexpr double kMinCoarseAxisPx = 6.0;
+  int k = 1;
+  while (k < 8 && min_axis_px / (2 * k) >= kMinCoarseAxisPx) k *= 2;
+  return k;
+}
+
+/// Elliptical dark or bright blobs of a plausible size: MSER on the 8-bit normalised image
+/// downsampled by coarse_factor() (MSER's cost grows with the pixels; the hole is refined
+/// at full resolution afterwards), ellipses and levels in full-resolution pixels.
 std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, double max_axis_px,
                                        const ImageDetectionOptions& o) {
-  cv::Mat u8;
-  f.convertTo(u8, CV_8U, 255.0);
-  const double min_area = std::max(20.0, kPi * min_axis_px * min_axis_px * o.min_axis_ratio);
-  const double max_area = std::min(0.5 * f.total(), kPi * max_axis_px * max_axis_px);
+  const int k = coarse_factor(min_axis_px);
+  cv::Mat coarse, u8;
+  if (k > 1) {
+    cv::resize(f, coarse, cv::Size(f.cols / k, f.rows / k), 0, 0, cv::INTER_AREA);
+  } else {
+    coarse = f;
+  }
+  coarse.convertTo(u8, CV_8U, 255.0);
+  const double k2 = static_cast<double>(k) * k;
+  const double min_area = std::max(20.0, kPi * min_axis_px * min_axis_px * o.min_axis_ratio / k2);
+  const double max_area = std::min(0.5 * static_cast<double>(u8.total()), kPi * max_axis_px * max_axis_px / k2);
   std::vector<Candidate> out;
   int stats[7] = {0, 0, 0, 0, 0, 0, 0};
   for (int pass = 0; pass < 2; ++pass) {
@@ -102,12 +120,15 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
       std::vector<std::vector<cv::Point>> contours;
       cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, cv::Point(box.x - 1, box.y - 1));
       if (contours.size() != 1 || contours[0].size() < 6) continue;
-      const cv::RotatedRect e = cv::fitEllipse(contours[0]);
+      cv::RotatedRect e = cv::fitEllipse(contours[0]);
+      // Coarse pixel centres -> full-resolution pixel centres.
+      e.center = cv::Point2f(static_cast<float>((e.center.x + 0.5) * k - 0.5), static_cast<float>((e.center.y + 0.5) * k - 0.5));
+      e.size = cv::Size2f(e.size.width * static_cast<float>(k), e.size.height * static_cast<float>(k));
       const double a = 0.5 * std::max(e.size.width, e.size.height);
       const double b = 0.5 * std::min(e.size.width, e.size.height);
-      if (!(b > 1.0) || b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
+      if (!(b > k) || b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
       ++stats[5];
-      const double fill = area / (kPi * a * b);
+      const double fill = area * k2 / (kPi * a * b);
       if (fill < 0.9 || fill > 1.1) continue;
       ++stats[6];
       if (e.center.x - a < 1 || e.center.y - a < 1 || e.center.x + a > f.cols - 2 ||
@@ -149,9 +170,12 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
 
 /// Chooses one candidate per layout hole: an affine map board -> image consistent with the
 /// layout, board y pointing up in the image. Returns candidate indices in layout order.
+/// With `seed_board_half` set, a selection must also put `seed` on the board: mapped back
+/// through the affine fit, within these half extents of the board centre.
 std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
                                     const std::vector<Candidate>& cand, const Eigen::Vector2d& up,
-                                    std::string* reason) {
+                                    std::string* reason, const std::optional<Eigen::Vector2d>& seed = {},
+                                    const Eigen::Vector2d& seed_board_half = Eigen::Vector2d::Zero()) {
   const std::size_t n = layout.size();
   if (cand.size() < n) {
     *reason = "found " + std::to_string(cand.size()) + " hole-like region(s), the target has " +
@@ -184,6 +208,12 @@ std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
       const Eigen::Vector2d ax = A.row(0).transpose(), ay = A.row(1).transpose();
       if (ay.dot(up) <= 0) return;  // board y must point up in the image
       if (ax.x() * ay.y() - ax.y() * ay.x() >= 0) return;  // x right of y (image v is down)
+      if (seed) {
+        Eigen::Matrix2d L;
+        L << ax, ay;
+        const Eigen::Vector2d board = L.inverse() * (*seed - A.row(2).transpose());
+        if (std::abs(board.x()) > seed_board_half.x() || std::abs(board.y()) > seed_board_half.y()) return;
+      }
       const double cost = rms / size;
       if (cost < best) {
         best = cost;
@@ -201,7 +231,8 @@ std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
   };
   rec(0);
   if (best_pick.empty() || best > 0.3) {
-    *reason = "no set of " + std::to_string(n) + " holes matches the target's layout";
+    *reason = "no set of " + std::to_string(n) + " holes matches the target's layout" +
+              (seed ? " with the seed on the board" : "");
     return {};
   }
   return best_pick;
@@ -322,12 +353,15 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
     return det;
   }
   const cv::Mat f = normalise_image(image, options.low_percentile, options.high_percentile);
-  cv::Mat smooth;
-  if (options.smoothing_sigma_px > 0) {
-    cv::GaussianBlur(f, smooth, cv::Size(), options.smoothing_sigma_px);
-  } else {
-    smooth = f;
-  }
+  // The smoothed image of a region (the whole image by default). GaussianBlur reads the
+  // pixels around a sub-matrix, so a region's result equals the same region of the whole.
+  const auto smoothed = [&](const cv::Rect& roi) {
+    cv::Mat out;
+    if (options.smoothing_sigma_px > 0) cv::GaussianBlur(f(roi), out, cv::Size(), options.smoothing_sigma_px);
+    else out = f(roi);
+    return out;
+  };
+  const cv::Rect whole(0, 0, f.cols, f.rows);
   const double fx = camera.intrinsics().fx;
   const double max_axis = 1.1 * fx * target.radius_m / options.min_range_m;
   const double min_axis = 0.9 * fx * target.radius_m / options.max_range_m;
@@ -335,15 +369,32 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
 
   std::vector<Candidate> chosen;
   if (seed_px) {
-    if (layout.size() != 1) {
-      det.reason = "a seed pixel is only used for single-hole targets";
-      return det;
-    }
     const Eigen::Vector2i s = seed_px->array().round().cast<int>();
     if (s.x() < 0 || s.y() < 0 || s.x() >= f.cols || s.y() >= f.rows) {
       det.reason = "seed (" + std::to_string(s.x()) + ", " + std::to_string(s.y()) + ") outside the image";
       return det;
     }
+  }
+  if (seed_px && layout.size() > 1) {
+    // A multi-hole board: the seed (anywhere on the board) picks the layout match that has
+    // it on the board; the candidates nearest the seed are tried first.
+    auto cand = find_candidates(f, min_axis, max_axis, options);
+    const auto dist = [&](const Candidate& c) {
+      return std::hypot(c.ellipse.center.x - seed_px->x(), c.ellipse.center.y - seed_px->y());
+    };
+    std::stable_sort(cand.begin(), cand.end(), [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
+    Eigen::Vector2d half = Eigen::Vector2d::Zero();
+    for (const auto& h : layout) half = half.cwiseMax(h.cwiseAbs());
+    half.array() += 2.0 * target.radius_m;
+    if (target.board_size_m) half = 0.5 * *target.board_size_m;
+    std::string why;
+    const auto pick = match_layout_image(layout, cand, options.up_image.normalized(), &why, *seed_px, half);
+    if (pick.empty()) {
+      det.reason = why;
+      return det;
+    }
+    for (int i : pick) chosen.push_back(cand[static_cast<std::size_t>(i)]);
+  } else if (seed_px) {
     // The seed picks among the hole candidates the automatic search finds: the smallest
     // one that contains it. Only when none does, the seed's own region (grown with a loose
     // threshold) gives the hole; on blurred thermal edges that region can leak out of the
@@ -368,11 +419,11 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
       if (best >= 0) chosen.push_back(cand[static_cast<std::size_t>(best)]);
     }
   }
-  if (seed_px && chosen.empty()) {
+  if (seed_px && chosen.empty() && layout.size() == 1) {
     const Eigen::Vector2i s = seed_px->array().round().cast<int>();
     // Contrast from the seed's region grown with a loose threshold: its ring gives the board.
     cv::Mat region;
-    const auto bnd = grow_region(smooth, s, 0.05, 0.25, &region,
+    const auto bnd = grow_region(smoothed(whole), s, 0.05, 0.25, &region,
                                  static_cast<std::size_t>(kPi * max_axis * max_axis));
     std::vector<cv::Point> pts;
     for (const auto& b : bnd) pts.emplace_back(b.x(), b.y());
@@ -407,12 +458,37 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
     const Eigen::Vector2i s(static_cast<int>(std::lround(c.ellipse.center.x)),
                             static_cast<int>(std::lround(c.ellipse.center.y)));
     // Algorithm 1 from the hole's centre (the automatic seed) or the clicked seed.
-    const Eigen::Vector2i seed = seed_px ? Eigen::Vector2i(seed_px->array().round().cast<int>()) : s;
-    cv::Mat region;
+    const Eigen::Vector2i seed = seed_px && layout.size() == 1 ? Eigen::Vector2i(seed_px->array().round().cast<int>()) : s;
+    // Algorithm 1 and the edge refinement within 2.5 semi-axes of the hole; the whole image
+    // only when the region reaches that window's border (a leak, or a seed outside it).
+    const double reach = 2.5 * 0.5 * std::max(c.ellipse.size.width, c.ellipse.size.height) + options.edge_search_px + 3;
+    cv::Rect roi(static_cast<int>(std::floor(c.ellipse.center.x - reach)), static_cast<int>(std::floor(c.ellipse.center.y - reach)),
+                 static_cast<int>(std::ceil(2 * reach)) + 1, static_cast<int>(std::ceil(2 * reach)) + 1);
+    roi &= whole;
+    if (!roi.contains(cv::Point(seed.x(), seed.y()))) roi = whole;
+    cv::Mat region, smooth = smoothed(roi);
     ImageHole hole;
-    hole.boundary_px = grow_region(smooth, seed, options.epsilon_fraction * contrast,
-                                   options.seed_guard_fraction * contrast, &region,
-                                   static_cast<std::size_t>(3.0 * expected_area) + 100);
+    const auto grow = [&] {
+      hole.boundary_px = grow_region(smooth, seed - Eigen::Vector2i(roi.x, roi.y), options.epsilon_fraction * contrast,
+                                     options.seed_guard_fraction * contrast, &region,
+                                     static_cast<std::size_t>(3.0 * expected_area) + 100);
+    };
+    grow();
+    const auto touches_window = [&] {
+      for (const Eigen::Vector2i& b : hole.boundary_px) {
+        if ((b.x() == 0 && roi.x > 0) || (b.y() == 0 && roi.y > 0) ||
+            (b.x() == roi.width - 1 && roi.x + roi.width < f.cols) ||
+            (b.y() == roi.height - 1 && roi.y + roi.height < f.rows))
+          return true;
+      }
+      return false;
+    };
+    if (roi != whole && touches_window()) {
+      roi = whole;
+      smooth = smoothed(roi);
+      grow();
+    }
+    for (Eigen::Vector2i& b : hole.boundary_px) b += Eigen::Vector2i(roi.x, roi.y);
     const double area = cv::countNonZero(region);
     if (hole.boundary_px.empty() || area < 0.4 * expected_area) {
       det.reason = "hole " + std::to_string(h) + ": region growing gave " + std::to_string(static_cast<int>(area)) +
@@ -427,7 +503,7 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
     cv::Sobel(smooth, gy, CV_32F, 0, 1, 3);
     const double mid = 0.5 * (c.inside + c.outside);
     for (const Eigen::Vector2i& b : hole.boundary_px) {
-      Eigen::Vector2d d(gx.at<float>(b.y(), b.x()), gy.at<float>(b.y(), b.x()));
+      Eigen::Vector2d d(gx.at<float>(b.y() - roi.y, b.x() - roi.x), gy.at<float>(b.y() - roi.y, b.x() - roi.x));
       const Eigen::Vector2d radial = (b.cast<double>() - Eigen::Vector2d(c.ellipse.center.x, c.ellipse.center.y)).normalized();
       if (d.norm() < 1e-6) d = radial;
       d.normalize();

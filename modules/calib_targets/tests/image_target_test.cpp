@@ -186,3 +186,35 @@ TEST(ImageTarget, FourHoleLayoutOrder) {
     EXPECT_LT(percentile(err, 0.95), 0.5) << "hole " << k;
   }
 }
+
+// A click anywhere on a 4-hole board picks that board: all four holes, the same as the
+// automatic detection (same candidates, so the centres agree to well under a pixel); a
+// click off the board names the failure.
+TEST(ImageTarget, FourHoleBoardPickedBySeed) {
+  const auto cam = make_camera(1288, 964, 1335.0);
+  Scene s = scene_at(3.0, 0.1, 0.0, 0.3, -0.15);
+  s.radius = 0.12;
+  s.holes = {{-0.3, 0.3}, {0.3, 0.3}, {-0.3, -0.3}, {0.3, -0.3}};
+  const cv::Mat img = render(s, cam, 190.0, 30.0, 1.0, 2.0, CV_8U, 5u);
+  rgbdt::core::TargetSpec t;
+  t.radius_m = 0.12;
+  t.holes_m = s.holes;
+  const auto automatic = ct::detect_target_in_image(img, t, cam);
+  ASSERT_TRUE(automatic.ok) << automatic.reason;
+  // On the board between the lower holes, and near its top-left corner.
+  for (const Eigen::Vector3d& on_board : {Eigen::Vector3d(0.0, -0.3, 0.0), Eigen::Vector3d(-0.5, 0.5, 0.0)}) {
+    Eigen::Vector2d click;
+    ASSERT_TRUE(cam.project(s.T_camera_board * on_board, &click));
+    const auto det = ct::detect_target_in_image(img, t, cam, {}, click);
+    ASSERT_TRUE(det.ok) << det.reason;
+    ASSERT_EQ(det.holes.size(), 4u);
+    for (std::size_t k = 0; k < 4; ++k) {
+      EXPECT_LT((det.holes[k].center_px - automatic.holes[k].center_px).norm(), 0.1) << "hole " << k;
+      EXPECT_LT(percentile(edge_errors(s, cam, k, det.holes[k].edge_points_px), 0.95), 0.5) << "hole " << k;
+    }
+  }
+  // Off the board (well beyond its half size of 0.6 m), in the top-left image corner.
+  const auto off = ct::detect_target_in_image(img, t, cam, {}, Eigen::Vector2d(30, 30));
+  EXPECT_FALSE(off.ok);
+  EXPECT_NE(off.reason.find("seed on the board"), std::string::npos) << off.reason;
+}

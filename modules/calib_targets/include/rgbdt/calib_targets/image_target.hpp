@@ -62,8 +62,10 @@ struct ImageTargetDetection {
 };
 
 /// Detects the target's hole(s). image: 8U or 16U, 1 or 3 channels, of the camera's size.
-/// With a seed (single-hole targets), Algorithm 1 grows from it; otherwise seeds are found
-/// automatically. Never throws for bad images (ok = false and reason); throws
+/// With a seed on a single-hole target, the hole candidate containing it is taken (else
+/// Algorithm 1 grows from it); on a multi-hole target a seed anywhere on the board picks
+/// the board whose holes match the layout with the seed on the board. Without a seed the
+/// holes are found automatically. Never throws for bad images (ok = false and reason); throws
 /// std::invalid_argument for invalid options or target.
 ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::TargetSpec& target,
                                             const core::PinholeCamera& camera,
