@@ -14,6 +14,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "covariance_input.hpp"
 #include "edge_cost.hpp"
 #include "lm_polish.hpp"
 #include "projection.hpp"
@@ -177,6 +178,42 @@ detail::PointFit fit_of_view(const std::vector<Eigen::Vector3d>& points, const S
   return fit;
 }
 
+/// The covariance of the solution x (covariance.hpp) over the active views; the jackknife's
+/// leave-one-view-out solves are polishes of Eq. (2) (our cost, whatever the method) from x.
+CovarianceTerms covariance_at_solution(const std::vector<TargetView>& views,
+                                       const std::vector<size_t>& usable_index,
+                                       const std::vector<bool>& active,
+                                       const std::vector<std::unique_ptr<SmoothView>>& fields,
+                                       const ProjectionModel& cam, const core::Vector6d& x,
+                                       const EdgeAlignmentOptions& options) {
+  const CovarianceOptions& model = options.covariance_model;
+  std::vector<detail::ViewCovarianceInput> inputs;
+  std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+  for (size_t k = 0; k < usable_index.size(); ++k) {
+    if (!active[k]) continue;
+    const size_t i = usable_index[k];
+    const std::vector<LidarHoleSigma>* sigma = i < model.per_view.size() ? &model.per_view[i] : nullptr;
+    inputs.push_back(detail::view_covariance_input(cam, *fields[k], views[i], x, sigma,
+                                                   model.default_range_sigma_m));
+    costs.push_back(std::make_unique<ViewEdgeCost>(&cam, fields[k].get(), &views[i].lidar_circle_points,
+                                                   options.huber_px));
+  }
+  std::vector<core::Vector6d> leave_one_out;
+  if (model.jackknife && costs.size() >= 3) {
+    detail::PolishOptions polish_options;
+    polish_options.max_iterations = options.max_iterations;
+    polish_options.parameter_tolerance = options.parameter_tolerance;
+    polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
+    for (size_t out = 0; out < costs.size(); ++out) {
+      std::vector<const ViewEdgeCost*> others;
+      for (size_t j = 0; j < costs.size(); ++j)
+        if (j != out) others.push_back(costs[j].get());
+      leave_one_out.push_back(detail::polish(others, x, polish_options).x);
+    }
+  }
+  return detail::combine_covariance(inputs, leave_one_out);
+}
+
 std::string usable_reason(const TargetView& view, const core::PinholeCamera& camera) {
   std::ostringstream os;
   if (view.lidar_circle_points.empty()) os << "no LIDAR circle points";
@@ -227,6 +264,7 @@ std::string EdgeAlignmentOptions::validate() const {
     os << "min_in_image_fraction = " << min_in_image_fraction << ", expected in [0, 1]; ";
   if (coarse_stride < 1) os << "coarse_stride = " << coarse_stride << ", expected >= 1; ";
   os << field.validate();
+  if (const std::string why = covariance_model.validate(); !why.empty()) os << "covariance_model: " << why << "; ";
   return os.str();
 }
 
@@ -345,11 +383,9 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
 
   std::vector<bool> active(usable_index.size(), true);
   std::vector<double> sum2_of_view(usable_index.size(), 0.0);
-  std::vector<core::Matrix6d> JtJ_of_view(usable_index.size(), core::Matrix6d::Zero());
   std::vector<size_t> count_of_view(usable_index.size(), 0);
-  // Fit (and normal equations) of each view at this round's x, when the polish left them.
+  // Fit of each view at this round's x, when the polish left it.
   std::vector<detail::PointFit> fit_at_x(usable_index.size());
-  std::vector<detail::NormalEquations> normal_equations_of_view(usable_index.size());
   ceres::Solver::Summary summary;
   std::string polish_report;
   std::ostringstream message;
@@ -393,7 +429,6 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
       for (size_t k = 0; k < usable_index.size(); ++k) {
         if (!active[k]) continue;
         fit_at_x[k] = std::move(polished.fits[j]);
-        normal_equations_of_view[k] = polished.normal_equations[j];
         have_fit[k] = true;
         ++j;
       }
@@ -430,15 +465,12 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     std::vector<double> active_rms;
     for (size_t k = 0; k < usable_index.size(); ++k) {
       const TargetView& v = views[usable_index[k]];
-      // The covariance needs J^T J at the final pose: the polish's last evaluation has it
-      // for the active views; the others (and the paper's method) take one pass here.
+      // The polish's last evaluation has the fit of the active views at x; the others (and
+      // the paper's method) take one pass here.
       if (!have_fit[k]) {
-        normal_equations_of_view[k] = {};
-        fit_at_x[k] = fit_of_view(v.lidar_circle_points, *fields[k], cam, options.huber_px, x,
-                                  options.compute_covariance ? &normal_equations_of_view[k] : nullptr);
+        fit_at_x[k] = fit_of_view(v.lidar_circle_points, *fields[k], cam, options.huber_px, x, nullptr);
       }
       const detail::PointFit& fit = fit_at_x[k];
-      JtJ_of_view[k] = normal_equations_of_view[k].JtJ_plain();
       double sum2 = 0.0;
       for (double d : fit.distances_px) sum2 += d * d;
       sum2_of_view[k] = sum2;
@@ -506,31 +538,10 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   result.rms_px = count ? std::sqrt(sum2 / count) : 0.0;
 
   if (options.compute_covariance && count > 6) {
-    // Covariance of Eq. (2)'s minimiser: (J^T J)^-1 scaled by the residual variance
-    // sigma^2 = sum d^2 / (N - 6), J the Jacobian of the (non-robust) residuals at the
-    // solution; what ceres::Covariance computes for one dense block, without building a
-    // problem. The 360 circle points of a hole come from one circle fit and are not
-    // independent, so this is a lower bound on the real uncertainty.
-    core::Matrix6d JtJ = core::Matrix6d::Zero();
-    for (size_t k = 0; k < usable_index.size(); ++k)
-      if (active[k]) JtJ += JtJ_of_view[k];
-    // Pseudo-inverse as ceres::Covariance's DENSE_SVD with null_space_rank = -1: directions
-    // whose eigenvalue is below 1e-14 of the largest are dropped; the covariance is only
-    // reported valid when none is (all six parameters observable).
-    const Eigen::SelfAdjointEigenSolver<core::Matrix6d> eig(JtJ);
-    const Eigen::Matrix<double, 6, 1>& lambda = eig.eigenvalues();
-    if (eig.info() == Eigen::Success && lambda(5) > 0.0) {
-      Eigen::Matrix<double, 6, 1> inverse = Eigen::Matrix<double, 6, 1>::Zero();
-      bool full_rank = true;
-      for (int i = 0; i < 6; ++i) {
-        if (lambda(i) >= 1e-14 * lambda(5)) inverse(i) = 1.0 / lambda(i);
-        else full_rank = false;
-      }
-      result.covariance = eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
-      result.covariance *= sum2 / static_cast<double>(count - 6);
-      result.covariance_valid = full_rank;
-      if (!full_rank) message << "covariance rank-deficient (a direction is unobservable); ";
-    }
+    result.covariance_terms = covariance_at_solution(views, usable_index, active, fields, cam, x, options);
+    result.covariance = result.covariance_terms.total;
+    result.covariance_valid = result.covariance_terms.valid;
+    if (!result.covariance_valid) message << "covariance rank-deficient (a direction is unobservable); ";
   }
 
   message << (paper ? "paper plane-fit LUT" : "smooth field") << ", " << polish_report;

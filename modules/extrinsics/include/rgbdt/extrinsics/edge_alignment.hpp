@@ -22,6 +22,7 @@
 
 #include "rgbdt/core/camera.hpp"
 #include "rgbdt/core/transform.hpp"
+#include "rgbdt/extrinsics/covariance.hpp"
 #include "rgbdt/extrinsics/edge_distance_field.hpp"
 #include "rgbdt/extrinsics/target_view.hpp"
 
@@ -70,10 +71,13 @@ struct EdgeAlignmentOptions {
   /// A view is unusable when fewer than this fraction of its circle points project into
   /// the image at the initial guess and again at the solution.
   double min_in_image_fraction = 0.5;
-  /// Fill EdgeAlignmentResult::covariance ((J^T J)^-1 of the residuals at the solution,
-  /// scaled by the residual variance). Nearly free for kSmoothField (the polish's last
-  /// evaluation yields J^T J); for kPaperPlaneFit it costs one pass with the Jacobian.
+  /// Fill EdgeAlignmentResult::covariance (see covariance.hpp: image-edge noise, the
+  /// correlation along an edge, the LIDAR circles' own uncertainty and, with >= 3 views,
+  /// the leave-one-view-out scatter). Costs one pass with the Jacobian over the points and,
+  /// with the jackknife, one polish per used view.
   bool compute_covariance = true;
+  /// The LIDAR hole uncertainties per view and the jackknife switch of the covariance.
+  CovarianceOptions covariance_model;
 
   std::string validate() const;  ///< empty when valid, else the reason
 };
@@ -95,6 +99,9 @@ struct EdgeAlignmentResult {
   bool initial_from_closed_form = false;  ///< true when no guess was given
   core::Matrix6d covariance = core::Matrix6d::Zero();  ///< [rx ry rz tx ty tz], rad^2, m^2
   bool covariance_valid = false;  ///< computed and full rank (every parameter observable)
+  /// The terms `covariance` (== covariance_terms.total) is made of; .jacobian is the
+  /// residual-scaled (J^T J)^-1 alone, which ignores everything but image-edge noise.
+  CovarianceTerms covariance_terms;
   bool converged = false;      ///< solver reached a tolerance (not max_iterations/failure)
   int iterations = 0;          ///< LM iterations, summed over outlier-rejection rounds
   double rms_px = 0.0;         ///< RMS point-to-edge distance over the used views [px]

@@ -1,0 +1,88 @@
+#pragma once
+/// \file
+/// Covariance of the camera-LIDAR extrinsics of Eq. (2), in the parametrisation of
+/// core::to_vector6 ([rx ry rz tx ty tz], rad^2, m^2), honest about what the residuals of
+/// the image edges cannot show.
+///
+/// The circle points of a hole are not measurements: they are sampled from one circle
+/// (centre, normal, known radius) fitted to a few LIDAR edge points and the board plane. An
+/// error of that circle moves all of its points together, and with one hole per view the
+/// pose absorbs it completely (the residuals stay small while the pose is off). The
+/// covariance therefore has these terms, all evaluated at the solution x with H = J^T J of
+/// the plain point residuals:
+///  - jacobian:   sigma^2 H^-1, sigma^2 = |r|^2 / (N - 6): independent image-edge noise.
+///  - sandwich:   cluster-robust H^-1 (sum_h s_h s_h^T) H^-1 G / (G - 1), s_h = J_h^T r_h
+///                the score of hole h (G holes in all): the correlation of the residuals
+///                along one edge (G >= 2; else equal to `jacobian`).
+///  - systematic: the LIDAR circle errors propagated through the minimiser,
+///                H^-1 (sum_h B_h Sigma_h B_h^T) H^-1, B_h = sum_i J_i^T (d r_i / d p_i)
+///                (d p_i / d theta_h), theta_h = (centre shift, tilt of the normal) of hole
+///                h with covariance Sigma_h from LidarHoleSigma: what no view reveals about
+///                itself.
+///  - jackknife:  (V - 1) / V sum_v (x_-v - mean)(x_-v - mean)^T over the leave-one-view-out
+///                solutions (V >= 3 views): the scatter the views actually show.
+/// total = sandwich + systematic, or, with >= 3 views, the larger (in every direction: the
+/// matrix whose quadratic form is the larger) of that and the jackknife.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "rgbdt/core/transform.hpp"
+
+namespace rgbdt::extrinsics {
+
+/// 1-sigma of one LIDAR hole circle.
+struct LidarHoleSigma {
+  double center_in_plane_m = 0.0;  ///< of the centre, per in-plane axis [m]
+  double center_normal_m = 0.0;    ///< of the centre along the board normal [m]
+  double tilt_rad = 0.0;           ///< of the normal, about each in-plane axis [rad]
+};
+
+/// The uncertainty of a detected hole from its detection: the in-plane centre from the
+/// edge points' scatter about the known-radius circle (RMS of |p - c| - r, which includes
+/// the beam-footprint widening) over their angular coverage, (sum_i u_i u_i^T)^-1 with u_i
+/// the in-plane radial directions; the normal offset at the centre and the tilt from the
+/// least-squares plane through the board points (their RMS distance to the plane is the
+/// LIDAR's range noise along the normal). Throws std::invalid_argument for fewer than 3
+/// edge points or 3 board points.
+LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
+                                const std::vector<Eigen::Vector3d>& board_points,
+                                const Eigen::Vector3d& center, const Eigen::Vector3d& normal,
+                                double radius_m);
+
+struct CovarianceOptions {
+  /// Per input view of align_edges (same order), per hole (the order of the view's
+  /// lidar_centers, else of its circle points): the hole's LIDAR uncertainty, e.g. from
+  /// lidar_hole_sigma(). A view without entries (or with a count that does not match its
+  /// holes) uses default_range_sigma_m.
+  std::vector<std::vector<LidarHoleSigma>> per_view;
+  /// Without per-view entries: the LIDAR range noise [m], taken as the hole centre's
+  /// 1-sigma on every axis and, over the hole radius, as the tilt of its normal.
+  double default_range_sigma_m = 0.01;
+  bool jackknife = true;  ///< leave-one-view-out with >= 3 used views
+  std::string validate() const;  ///< empty when valid, else the reason
+};
+
+/// The terms of the covariance (see the file comment), each 6x6 in to_vector6 order.
+struct CovarianceTerms {
+  core::Matrix6d jacobian = core::Matrix6d::Zero();
+  core::Matrix6d sandwich = core::Matrix6d::Zero();
+  core::Matrix6d systematic = core::Matrix6d::Zero();
+  core::Matrix6d jackknife = core::Matrix6d::Zero();
+  core::Matrix6d total = core::Matrix6d::Zero();
+  int num_views = 0;            ///< used views
+  int num_holes = 0;            ///< hole clusters over the used views
+  int holes_with_sigma = 0;     ///< of which have a LidarHoleSigma from the caller
+  bool jackknife_used = false;  ///< >= 3 views and the leave-one-out solves ran
+  bool valid = false;           ///< H full rank: every parameter observable
+};
+
+/// Mahalanobis distance squared e^T C^-1 e (the NEES of an error e under C); +infinity when
+/// C is not positive definite.
+double nees(const core::Vector6d& error, const core::Matrix6d& covariance);
+
+/// The larger of two covariances in every direction: A + (B - A)_+ with (.)_+ the positive
+/// part of the symmetric difference, so that v^T M v >= max(v^T A v, v^T B v) for all v.
+core::Matrix6d covariance_max(const core::Matrix6d& A, const core::Matrix6d& B);
+
+}  // namespace rgbdt::extrinsics
