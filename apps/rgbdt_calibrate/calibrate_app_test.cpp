@@ -88,12 +88,13 @@ std::string read_text(const std::string& path) {
   return ss.str();
 }
 
-// A simulated 3-view session (rgb and thermal, one-hole board), in its own folder per test.
-std::string simulate_session(const std::string& name) {
+// A simulated session (rgb and thermal, one-hole board) of `views` views, in its own folder
+// per test.
+std::string simulate_session(const std::string& name, int views = 3, const std::string& extra = "") {
   const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / name;
   fs::remove_all(dir);
-  const std::string cmd =
-      bin_dir() + "/rgbdt_sim calibration --views 3 --out " + dir.string() + " > " + dir.string() + ".sim.log 2>&1";
+  const std::string cmd = bin_dir() + "/rgbdt_sim calibration --views " + std::to_string(views) + " --seed 1 " + extra + " --out " +
+                          dir.string() + " > " + dir.string() + ".sim.log 2>&1";
   EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
   return dir.string();
 }
@@ -235,4 +236,103 @@ TEST(RgbdtCalibrate, InterruptStopsWritesNoReportAndExits130) {
   EXPECT_NE(output.find("interrupted"), std::string::npos) << output;
 }
 
+// The verdict: a consistent 10-view session passes and writes the extrinsics.
+TEST(RgbdtCalibrate, TenSimulatedViewsPass) {
+  const std::string dir = simulate_session("rgbdt_calibrate_verdict_pass", 10);
+  const std::string out = dir + "/out";
+  const AppRun r = run_app(dir + " --out " + out + " --camera rgb --seeds none");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/extrinsics_rgb.rejected.yaml")) << r.output;
+  EXPECT_EQ(r.output.find("FAIL"), std::string::npos) << r.output;
+  // PASS, or a WARN whose only reasons are views named by leave-one-view-out as moving the
+  // estimate "beyond its uncertainty": that gate uses align_edges' covariance, which is
+  // known to be too small (issue 29 item 4); with an honest covariance the session passes.
+  size_t warns = 0, covariance_warns = 0;
+  for (size_t at = r.output.find("    WARN: "); at != std::string::npos; at = r.output.find("    WARN: ", at + 1)) {
+    ++warns;
+    const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
+    covariance_warns += line.find("beyond its uncertainty") != std::string::npos ? 1 : 0;
+  }
+  EXPECT_TRUE(r.output.find("verdict: PASS") != std::string::npos || (warns > 0 && warns == covariance_warns))
+      << r.output;
+  const std::string report = read_text(out + "/report.md");
+  EXPECT_NE(report.find("**Verdict: "), std::string::npos) << report;
+  EXPECT_NE(report.find("| view | hole | lidar_x_m |"), std::string::npos) << report;
+  EXPECT_TRUE(fs::exists(out + "/detections_rgb.csv")) << r.output;
+}
+
+// One view: usable, but the verdict warns and names the weakly constrained direction. (A
+// 4-hole board: one view of one hole has no closed-form start, see align_edges.)
+TEST(RgbdtCalibrate, OneViewWarnsAndNamesTheWeakDirection) {
+  const std::string dir = simulate_session("rgbdt_calibrate_verdict_one_view", 1, "--holes 4");
+  const std::string out = dir + "/out";
+  const AppRun r = run_app(dir + " --out " + out + " --camera rgb --seeds none");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  EXPECT_NE(r.output.find("verdict: WARN"), std::string::npos) << r.output;
+  const std::string report = read_text(out + "/report.md");
+  EXPECT_NE(report.find("WARN: one view: the "), std::string::npos) << report;
+  EXPECT_NE(report.find("is weakly constrained"), std::string::npos) << report;
+}
+
+// A hopeless session: every view's image belongs to another placement of the board. The
+// camera FAILs: exit 2, only the .rejected.yaml (and a stale extrinsics_rgb.yaml of an
+// earlier run is gone), the overlays carry the banner, report.md says why.
+TEST(RgbdtCalibrate, HopelessSessionFailsAndWritesOnlyTheRejectedEstimate) {
+  const std::string dir = simulate_session("rgbdt_calibrate_verdict_hopeless", 4);
+  rgbdt::core::CalibrationSession s = rgbdt::core::read_calibration_session(dir);
+  const auto original = s.views;
+  for (size_t k = 0; k < s.views.size(); ++k) {
+    s.views[k].images = original[(k + 2) % s.views.size()].images;
+    s.views[k].image_seeds.clear();
+  }
+  rgbdt::core::write_calibration_session(dir + "/session.yaml", s);
+  const std::string out = dir + "/out";
+  fs::create_directories(out);
+  { std::ofstream(out + "/extrinsics_rgb.yaml") << "stale\n"; }
+  const AppRun r = run_app(dir + " --out " + out + " --camera rgb --seeds none");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.rejected.yaml")) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/extrinsics_thermal_rgb.yaml")) << r.output;
+  EXPECT_NE(r.output.find("verdict: FAIL"), std::string::npos) << r.output;
+  const std::string report = read_text(out + "/report.md");
+  EXPECT_NE(report.find("**Verdict: FAIL**"), std::string::npos) << report;
+}
+
+TEST(RgbdtCalibrate, TranslationBeyondMaxTranslationFailsNamingTheValue) {
+  const std::string dir = simulate_session("rgbdt_calibrate_verdict_max_t");
+  const std::string out = dir + "/out";
+  const AppRun r = run_app(dir + " --out " + out + " --camera rgb --seeds none --max-translation 0.01");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("exceeds the maximum of 0.010 m (--max-translation)"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.rejected.yaml")) << r.output;
+}
+
+// --lidar-only needs no camera: with every image and camera_info gone it writes one CSV row
+// per hole of every view (the simulated board's layout times the views).
+TEST(RgbdtCalibrate, LidarOnlyWritesEveryHoleWithoutCameras) {
+  const std::string dir = simulate_session("rgbdt_calibrate_lidar_only");
+  const rgbdt::core::CalibrationSession s = rgbdt::core::read_calibration_session(dir);
+  fs::remove_all(dir + "/rgb");
+  fs::remove_all(dir + "/thermal");
+  for (const auto& [name, camera] : s.cameras) fs::remove(camera.intrinsics);
+  const std::string out = dir + "/out";
+  const AppRun r = run_app(dir + " --out " + out + " --lidar-only");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream csv(out + "/detections_lidar.csv");
+  ASSERT_TRUE(csv.good()) << r.output;
+  std::string line;
+  std::getline(csv, line);
+  EXPECT_EQ(line.rfind("view,hole,lidar_x_m,lidar_y_m,lidar_z_m,lidar_radius_m,radius_measured,", 0), 0u) << line;
+  size_t rows = 0;
+  while (std::getline(csv, line)) rows += line.empty() ? 0 : 1;
+  const size_t holes = std::max<size_t>(1, s.target.holes_m.size());
+  EXPECT_EQ(rows, s.views.size() * holes) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/report.md")) << r.output;
+}
+
 }  // namespace
+

@@ -23,6 +23,9 @@
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/extrinsics/edge_alignment.hpp"
 #include "rgbdt/extrinsics/report.hpp"
+#include "rgbdt/extrinsics/verdict.hpp"
+#include "detections_table.hpp"
+#include "lidar_only.hpp"
 #include "preflight.hpp"
 #include "session_views.hpp"
 
@@ -57,25 +60,11 @@ std::string format_transform(const Eigen::Isometry3d& T) {
   return buf;
 }
 
-/// A camera on the LIDAR's rig: an estimate that puts it further away than this is wrong.
-constexpr double kMaxLeverArmM = 5.0;
-
-/// Why an estimate must not be used, or an empty string when it passes every check.
-std::string verdict_problem(const ext::EdgeAlignmentResult& r) {
-  if (!r.T_camera_lidar.matrix().allFinite() || !std::isfinite(r.rms_px))
-    return "the estimate is not finite";
-  if (!r.converged) return "the solver did not converge (" + r.message + ")";
-  int used = 0;
-  for (const auto& v : r.views) used += v.used ? 1 : 0;
-  if (used == 0) return "every view was rejected as an outlier";
-  const double lever = r.T_camera_lidar.translation().norm();
-  if (lever > kMaxLeverArmM) {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "translation of %.3f m, expected at most %.1f m for a camera on the LIDAR's rig",
-                  lever, kMaxLeverArmM);
-    return buf;
-  }
-  return {};
+/// The text of an overlay's red banner: the estimate's first FAIL reason, or why this view
+/// was rejected or named by the verdict; empty for a view in good standing.
+std::string overlay_banner(const ext::CalibrationVerdict& verdict, size_t view) {
+  if (verdict.failed() && !verdict.reasons.empty()) return verdict.reasons.front().text;
+  return verdict.views[view].problem;
 }
 
 /// overlay_<camera>_<view>.png of an earlier run of `camera` (the digits after the camera's
@@ -96,6 +85,32 @@ std::string overlay_name(const std::string& camera, int view) {
   return "overlay_" + camera + "_" + digits + ".png";
 }
 
+/// One row per hole of every view of a camera: the LIDAR hole, its image ellipse (when the
+/// detectors paired the holes) and the view's residual and use at the estimate.
+std::vector<rgbdt::calibrate::DetectionRow> detection_rows(const rgbdt::calibrate::CameraViews& cv,
+                                                           const ext::EdgeAlignmentResult* r) {
+  std::vector<rgbdt::calibrate::DetectionRow> rows;
+  for (size_t k = 0; k < cv.views.size(); ++k) {
+    const auto& lidar = cv.lidar_detections[k];
+    for (size_t h = 0; h < lidar.holes.size(); ++h) {
+      rgbdt::calibrate::DetectionRow row;
+      row.view = cv.session_index[k];
+      row.hole = static_cast<int>(h);
+      row.lidar_center = lidar.holes[h].center;
+      row.lidar_radius_m = lidar.holes[h].radius_m;
+      row.radius_measured = lidar.holes[h].radius_measured;
+      row.lidar_method = lidar.edge_method;
+      if (h < cv.views[k].image_ellipses.size()) row.image_ellipse = cv.views[k].image_ellipses[h];
+      if (r) {
+        row.view_rms_px = r->views[k].rms_px;
+        row.used = r->views[k].used;
+      }
+      rows.push_back(row);
+    }
+  }
+  return rows;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -105,17 +120,38 @@ int main(int argc, char** argv) {
       "(paper Sec. 3.6, Eq. (2)). Targets are found automatically; seeds in session.yaml are hints\n"
       "(a seeded detection that fails falls back to the automatic one, and the report says so).\n"
       "No initial guess is needed. Every file the session names is checked first; all problems\n"
-      "are listed at once (exit 1). Each camera is calibrated independently: writes\n"
-      "OUT_DIR/extrinsics_<camera>.yaml (T_camera_lidar with covariance) for each camera whose\n"
-      "estimate passes its checks, extrinsics_thermal_rgb.yaml when both cameras are calibrated,\n"
-      "overlay_<camera>_<view>.png (image edges blue, LIDAR circle before red, after green) and,\n"
-      "last, report.md (estimate, covariance, per-view residuals, rejected views, failed cameras\n"
-      "with the reason, errors against ground_truth.yaml if the session has one). Exit codes:\n"
-      "0 all cameras calibrated; 1 bad input; 2 a camera failed (named in report.md and on\n"
-      "stderr); 130 interrupted (no report.md)."};
+      "are listed at once (exit 1). Each camera is calibrated independently and judged:\n"
+      "  PASS  every check within its threshold;\n"
+      "  WARN  usable, with a caution: one view, a weakly constrained direction (named, with the\n"
+      "        view to add), marginal residuals, views rejected or influential;\n"
+      "  FAIL  not usable: the solver did not converge, |t| > --max-translation, the board behind\n"
+      "        the camera, residual RMS or hole-centre reprojection > 5x the edge noise expected\n"
+      "        at the views' depths, or views that disagree (leaving one out moves the estimate\n"
+      "        by > 2 deg or 10 cm).\n"
+      "Outputs in OUT_DIR:\n"
+      "  extrinsics_<camera>.yaml           T_camera_lidar with covariance (PASS or WARN only)\n"
+      "  extrinsics_<camera>.rejected.yaml  the estimate of a FAIL, for diagnosis only (never\n"
+      "                                     used for anything else)\n"
+      "  extrinsics_thermal_rgb.yaml        when both rgb and thermal pass or warn\n"
+      "  overlay_<camera>_<view>.png        image edges blue, LIDAR circle before red, after\n"
+      "                                     green; a red 'REJECTED: reason' banner on failed views\n"
+      "  detections_<camera>.csv            one row per hole and view: LIDAR centre x y z [m],\n"
+      "                                     LIDAR radius [m] and whether measured, image ellipse\n"
+      "                                     centre u v, axes and angle [px, deg], the LIDAR\n"
+      "                                     detector's method, the view's residual RMS and use\n"
+      "  report.md                          last: verdict with its reasons and numbers per camera,\n"
+      "                                     estimate, covariance, per-view residuals, errors against\n"
+      "                                     ground_truth.yaml if the session has one.\n"
+      "--lidar-only detects the target in every cloud, no camera needed (camera files may be\n"
+      "absent), and writes detections_lidar.csv (camera columns empty) and report.md; exit 0\n"
+      "when the target was found in every view, 2 when it was missed in some.\n"
+      "Exit codes: 0 every camera PASS or WARN; 1 bad input; 2 a camera FAILed or was not\n"
+      "calibrated (named in report.md and on stderr); 130 interrupted (no report.md)."};
   std::string session_dir, out_dir, camera_choice = "all", method_name = "edge", initial_path;
   bool verbose = false;
   std::string seeds = "all";
+  double max_translation_m = ext::VerdictOptions{}.max_translation_m;
+  bool lidar_only = false;
   app.add_option("SESSION_DIR", session_dir, "calibration session folder (with session.yaml)")->required();
   app.add_option("--out", out_dir, "output folder (created)")->required();
   app.add_option("--camera", camera_choice, "camera to calibrate: a camera name of the session or 'all'")
@@ -134,6 +170,13 @@ int main(int argc, char** argv) {
                  "the automatic one")
       ->check(CLI::IsMember({"all", "images", "lidar", "none"}))
       ->capture_default_str();
+  app.add_option("--max-translation", max_translation_m,
+                 "largest plausible |t| of T_camera_lidar [m] (camera on the LIDAR's rig); beyond it "
+                 "the camera FAILs")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_flag("--lidar-only", lidar_only,
+               "detect the target in the clouds only: detections_lidar.csv and report.md, no camera");
   app.add_flag("-v,--verbose", verbose, "print library log messages (debug level)");
   CLI11_PARSE(app, argc, argv);
 
@@ -142,6 +185,13 @@ int main(int argc, char** argv) {
   core::install_interrupt_handler();
   try {
     const core::CalibrationSession session = core::read_calibration_session(session_dir);
+    if (lidar_only) {
+      std::error_code ec;
+      fs::create_directories(out_dir, ec);
+      if (ec || !fs::is_directory(out_dir))
+        throw core::Error(out_dir, "cannot create the output folder" + (ec ? " (" + ec.message() + ")" : std::string()));
+      return rgbdt::calibrate::run_lidar_only(session, out_dir, seeds == "all" || seeds == "lidar");
+    }
     // Preflight: every camera_info and every file the session names, all problems at once.
     std::vector<std::string> problems;
     std::map<std::string, core::CameraIntrinsics> intrinsics;
@@ -186,6 +236,8 @@ int main(int argc, char** argv) {
     core::remove_stale_output(report_path);
     for (const auto& [name, camera] : cameras) {
       core::remove_stale_output((out / ("extrinsics_" + name + ".yaml")).string());
+      core::remove_stale_output((out / ("extrinsics_" + name + ".rejected.yaml")).string());
+      core::remove_stale_output((out / ("detections_" + name + ".csv")).string());
       for (const auto& e : fs::directory_iterator(out))
         if (is_overlay_of(e.path().filename().string(), name)) core::remove_stale_output(e.path().string());
     }
@@ -214,6 +266,9 @@ int main(int argc, char** argv) {
     const auto truth = read_ground_truth(session.directory);
     ext::EdgeAlignmentOptions options;
     options.method = ext::edge_alignment_method_from_string(method_name);
+    ext::VerdictOptions verdict_options;
+    verdict_options.max_translation_m = max_translation_m;
+    verdict_options.alignment = options;
     std::ostringstream report;
     std::map<std::string, ext::EdgeAlignmentResult> results;
     std::map<std::string, std::string> failed;  // camera -> reason
@@ -238,13 +293,22 @@ int main(int argc, char** argv) {
           os << "\n";
         }
       };
-      const auto fail = [&](const std::string& reason, const ext::EdgeAlignmentResult* r) {
+      const auto fail = [&](const std::string& reason, const ext::EdgeAlignmentResult* r,
+                            const ext::CalibrationVerdict* verdict = nullptr,
+                            const std::optional<Eigen::Isometry3d>& truth_of_camera = {}) {
         failed[name] = reason;
         std::fprintf(stderr, "error: camera %s: not calibrated: %s\n", name.c_str(), reason.c_str());
         for (const auto& s : cv.skipped) std::fprintf(stderr, "  %s\n", s.c_str());
-        report << "## " << name << "\n\n**FAILED: not calibrated: " << reason << ".** Nothing was written for "
-               << name << ".\n\n";
-        if (r) report << "The rejected estimate, for diagnosis only:\n\n" << ext::format_alignment_report(name, *r);
+        report << "## " << name << "\n\n**FAILED: not calibrated: " << reason << ".** "
+               << (verdict ? "Only extrinsics_" + name + ".rejected.yaml was written, for diagnosis."
+                           : "Nothing was written for " + name + ".")
+               << "\n\n";
+        if (verdict) report << ext::format_verdict_report(*verdict);
+        if (r && !cv.lidar_detections.empty())
+          report << "Detections:\n\n" << rgbdt::calibrate::format_detections_markdown(detection_rows(cv, r));
+        if (r)
+          report << "The rejected estimate, for diagnosis only:\n\n"
+                 << ext::format_alignment_report(name, *r, truth_of_camera).substr(name.size() + 5);
         list_views(report);
       };
       for (const auto& s : cv.seed_notes) std::printf("  %s\n", s.c_str());
@@ -278,20 +342,24 @@ int main(int argc, char** argv) {
         const ext::PoseError e = ext::pose_error(r.T_camera_lidar, *t);
         std::printf("  error vs ground truth: %.4f deg, %.3f cm\n", e.rotation_deg, e.translation_cm);
       }
-      if (const std::string why = verdict_problem(r); !why.empty()) {
-        fail(why, &r);
-        continue;
-      }
+      const ext::CalibrationVerdict verdict = ext::judge_calibration(cv.views, camera, r, verdict_options);
+      std::printf("  verdict: %s\n", ext::to_string(verdict.level).c_str());
+      for (const auto& reason : verdict.reasons)
+        std::printf("    %s: %s\n", ext::to_string(reason.level).c_str(), reason.text.c_str());
+      const auto rows = detection_rows(cv, &r);
       try {
+        const std::string csv_path = (out / ("detections_" + name + ".csv")).string();
+        core::write_file_atomic(csv_path, rgbdt::calibrate::format_detections_csv(rows));
+        std::printf("  wrote %s\n", csv_path.c_str());
         // Overlays first, the extrinsics last: extrinsics_<camera>.yaml exists only when
         // everything of this camera was written.
         for (size_t k = 0; k < cv.views.size(); ++k) {
           const cv::Mat image = cv::imread(cv.image_paths[k], cv::IMREAD_UNCHANGED);
           if (image.empty()) throw core::Error(cv.image_paths[k], "cannot read the image for the overlay");
           core::TempOutput overlay((out / overlay_name(name, cv.session_index[k])).string());
-          if (!cv::imwrite(overlay.temp_path(), ext::draw_overlay(image, cv.views[k], camera, r.T_camera_lidar_initial,
-                                                                  r.T_camera_lidar),
-                           rgbdt::calibrate::kOverlayPngParams))
+          const cv::Mat drawn = ext::draw_overlay(image, cv.views[k], camera, r.T_camera_lidar_initial,
+                                                  r.T_camera_lidar, overlay_banner(verdict, k));
+          if (!cv::imwrite(overlay.temp_path(), drawn, rgbdt::calibrate::kOverlayPngParams))
             throw core::Error(overlay.path(), "cannot write the overlay PNG");
           overlay.commit();
         }
@@ -301,16 +369,27 @@ int main(int argc, char** argv) {
         e.child_frame = "lidar";
         e.T_parent_child = r.T_camera_lidar;
         if (r.covariance_valid) e.covariance = r.covariance;
-        const std::string yaml_path = (out / ("extrinsics_" + name + ".yaml")).string();
-        core::write_file_atomic(yaml_path, core::format_extrinsics(e));
+        const std::string yaml_path =
+            (out / ("extrinsics_" + name + (verdict.failed() ? ".rejected.yaml" : ".yaml"))).string();
+        const std::string header =
+            verdict.failed() ? "# REJECTED by rgbdt_calibrate's verdict, for diagnosis only: " + verdict.summary() + "\n"
+                             : std::string();
+        core::write_file_atomic(yaml_path, header + core::format_extrinsics(e));
         std::printf("  wrote %s\n", yaml_path.c_str());
-        written.push_back(yaml_path);
+        if (!verdict.failed()) written.push_back(yaml_path);
       } catch (const std::exception& e) {
         fail(std::string("cannot write its outputs: ") + e.what(), nullptr);
         continue;
       }
+      if (verdict.failed()) {
+        fail("verdict " + verdict.summary(), &r, &verdict, t);
+        continue;
+      }
       results[name] = r;
-      report << ext::format_alignment_report(name, r, t);
+      const std::string section = ext::format_alignment_report(name, r, t);
+      const size_t heading_end = section.find("\n\n") + 2;  // the verdict right under "## <camera>"
+      report << section.substr(0, heading_end) << ext::format_verdict_report(verdict) << section.substr(heading_end)
+             << "Detections:\n\n" << rgbdt::calibrate::format_detections_markdown(rows);
       list_views(report);
     }
     // RGB to thermal from the two calibrations.

@@ -141,6 +141,9 @@ SessionDetections detect_session_views(const core::CalibrationSession& session,
       cv.views.push_back(make_target_view(lidar, det, session.target, image.size(), label));
       cv.session_index.push_back(static_cast<int>(i));
       cv.image_paths.push_back(image_it->second);
+      cv.lidar_detections.push_back(lidar);
+      cv.lidar_detections.back().board_points.clear();
+      for (auto& h : cv.lidar_detections.back().holes) h.edge_points.clear();
     }
     result.views_done = i + 1;
   }

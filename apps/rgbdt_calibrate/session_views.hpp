@@ -22,6 +22,8 @@ struct CameraViews {
   std::vector<extrinsics::TargetView> views;  ///< views where both detections succeeded
   std::vector<int> session_index;             ///< index of each view in the session
   std::vector<std::string> image_paths;       ///< image of each view
+  /// LIDAR detection of each view (holes and method; board and edge points dropped).
+  std::vector<calib_targets::LidarTargetDetection> lidar_detections;
   std::vector<std::string> skipped;           ///< "view i: reason" for every other view
   /// "view i: ..." for every seed that did not lead to the target (the automatic detector
   /// was used instead, or also failed).

@@ -42,7 +42,7 @@ cv::Mat to_display_bgr(const cv::Mat& image) {
 
 cv::Mat draw_overlay(const cv::Mat& image, const TargetView& view, const core::PinholeCamera& camera,
                      const Eigen::Isometry3d& T_camera_lidar_before,
-                     const Eigen::Isometry3d& T_camera_lidar_after) {
+                     const Eigen::Isometry3d& T_camera_lidar_after, const std::string& rejected) {
   cv::Mat out = to_display_bgr(image);
   for (const auto& p : view.image_edge_points_px)
     cv::circle(out, cv::Point(cvRound(p.x()), cvRound(p.y())), 1, cv::Scalar(255, 80, 0), -1);
@@ -57,6 +57,12 @@ cv::Mat draw_overlay(const cv::Mat& image, const TargetView& view, const core::P
   draw(T_camera_lidar_after, cv::Scalar(0, 220, 0));
   cv::putText(out, view.name + "  blue: image edges  red: LIDAR before  green: after",
               cv::Point(10, 25), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(0, 255, 255), 2);
+  if (!rejected.empty()) {
+    const int h = std::min(out.rows, 40);
+    cv::rectangle(out, cv::Rect(0, out.rows - h, out.cols, h), cv::Scalar(0, 0, 200), cv::FILLED);
+    cv::putText(out, "REJECTED: " + rejected, cv::Point(8, out.rows - h / 2 + 7), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+                cv::Scalar(255, 255, 255), 2);
+  }
   return out;
 }
 

@@ -20,10 +20,11 @@ namespace rgbdt::extrinsics {
 cv::Mat to_display_bgr(const cv::Mat& image);
 
 /// The image with the view's image edge points (blue), the LIDAR circle points projected
-/// with T_before (red) and with T_after (green).
+/// with T_before (red) and with T_after (green). A non-empty `rejected` is written on a red
+/// banner across the bottom ("REJECTED: <rejected>"): the view or the whole estimate failed.
 cv::Mat draw_overlay(const cv::Mat& image, const TargetView& view, const core::PinholeCamera& camera,
                      const Eigen::Isometry3d& T_camera_lidar_before,
-                     const Eigen::Isometry3d& T_camera_lidar_after);
+                     const Eigen::Isometry3d& T_camera_lidar_after, const std::string& rejected = {});
 
 /// Errors of an estimate against a reference: rotation angle [deg], translation [cm].
 struct PoseError {
