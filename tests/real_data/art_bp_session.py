@@ -200,7 +200,7 @@ def write_extrinsics(path, R, t, source):
     text = (f"# The authors' result ({source}): p_cam = Rcl p_lidar + Pcl.\n"
             f"parent_frame: {CAMERA}\nchild_frame: lidar\n"
             f"translation: {fmt(t)}\nrotation_quaternion: {fmt(quaternion_xyzw(R))}\n"
-            "matrix:\n" + "".join(f"  - {fmt(row)}\n" for row in M))
+            f"matrix: {fmt(M.reshape(-1))}\n")
     with open(path, "w", encoding="utf-8") as f:
         f.write(text)
 
