@@ -325,8 +325,13 @@ int main(int argc, char** argv) {
                   guess ? "given initial guess" : "closed-form initial guess");
       std::fflush(stdout);
       ext::EdgeAlignmentResult r;
+      // The covariance takes each hole's LIDAR uncertainty from its detection.
+      ext::EdgeAlignmentOptions camera_options = options;
+      camera_options.covariance_model.per_view = cv.hole_sigmas;
+      ext::VerdictOptions camera_verdict_options = verdict_options;
+      camera_verdict_options.alignment = camera_options;
       try {
-        r = ext::align_edges(cv.views, camera, options, guess);
+        r = ext::align_edges(cv.views, camera, camera_options, guess);
       } catch (const std::exception& e) {
         fail(std::string("the alignment failed: ") + e.what(), nullptr);
         continue;
@@ -342,7 +347,7 @@ int main(int argc, char** argv) {
         const ext::PoseError e = ext::pose_error(r.T_camera_lidar, *t);
         std::printf("  error vs ground truth: %.4f deg, %.3f cm\n", e.rotation_deg, e.translation_cm);
       }
-      const ext::CalibrationVerdict verdict = ext::judge_calibration(cv.views, camera, r, verdict_options);
+      const ext::CalibrationVerdict verdict = ext::judge_calibration(cv.views, camera, r, camera_verdict_options);
       std::printf("  verdict: %s\n", ext::to_string(verdict.level).c_str());
       for (const auto& reason : verdict.reasons)
         std::printf("    %s: %s\n", ext::to_string(reason.level).c_str(), reason.text.c_str());

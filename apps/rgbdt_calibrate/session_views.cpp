@@ -141,6 +141,18 @@ SessionDetections detect_session_views(const core::CalibrationSession& session,
       cv.views.push_back(make_target_view(lidar, det, session.target, image.size(), label));
       cv.session_index.push_back(static_cast<int>(i));
       cv.image_paths.push_back(image_it->second);
+      std::vector<extrinsics::LidarHoleSigma> sigmas;
+      for (const auto& h : lidar.holes) {
+        // Too few points to measure: leave the view to the covariance's default (an empty
+        // list for the view makes every hole use it).
+        if (h.edge_points.size() < 3 || lidar.board_points.size() < 3) {
+          sigmas.clear();
+          break;
+        }
+        sigmas.push_back(extrinsics::lidar_hole_sigma(h.edge_points, lidar.board_points, h.center, h.normal,
+                                                      session.target.radius_m));
+      }
+      cv.hole_sigmas.push_back(std::move(sigmas));
       cv.lidar_detections.push_back(lidar);
       cv.lidar_detections.back().board_points.clear();
       for (auto& h : cv.lidar_detections.back().holes) h.edge_points.clear();

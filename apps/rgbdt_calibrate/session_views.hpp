@@ -13,6 +13,7 @@
 #include "rgbdt/calib_targets/lidar_target.hpp"
 #include "rgbdt/core/camera.hpp"
 #include "rgbdt/core/session.hpp"
+#include "rgbdt/extrinsics/covariance.hpp"
 #include "rgbdt/extrinsics/target_view.hpp"
 
 namespace rgbdt::calibrate {
@@ -24,6 +25,9 @@ struct CameraViews {
   std::vector<std::string> image_paths;       ///< image of each view
   /// LIDAR detection of each view (holes and method; board and edge points dropped).
   std::vector<calib_targets::LidarTargetDetection> lidar_detections;
+  /// Per view, per LIDAR hole: the uncertainty of its circle from its own edge points and
+  /// board plane (extrinsics::lidar_hole_sigma), for the covariance of the estimate.
+  std::vector<std::vector<extrinsics::LidarHoleSigma>> hole_sigmas;
   std::vector<std::string> skipped;           ///< "view i: reason" for every other view
   /// "view i: ..." for every seed that did not lead to the target (the automatic detector
   /// was used instead, or also failed).

@@ -119,19 +119,27 @@ LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
   Eigen::Vector3d a1, a2;
   plane_axes(n, &a1, &a2);
   LidarHoleSigma s;
-  // In-plane centre: sigma_e^2 (sum u u^T)^-1 with 2 of the edge residuals' degrees of
-  // freedom spent on the centre; the larger axis (edges along few scan lines leave one
-  // direction weaker).
+  // In-plane centre: sigma_e^2 (sum u u^T)^-1, the larger axis (edges along few scan lines
+  // leave one direction weaker). sigma_e is the scatter of the radial residuals |p - c| - r
+  // about their mean: a common radial offset (the beam footprint's edge bias, which the
+  // detector corrects from the data, or a radius that differs from the nominal one) widens
+  // or shrinks the circle without moving its centre. 3 degrees of freedom go to the centre
+  // and that offset.
   Eigen::Matrix2d M = Eigen::Matrix2d::Zero();
-  double e2 = 0.0;
+  double sum = 0.0, sum2 = 0.0;
+  std::size_t used = 0;
   for (const auto& p : edge_points) {
     const Eigen::Vector2d d((p - center).dot(a1), (p - center).dot(a2));
     const double r = d.norm();
     if (r <= 0.0) continue;
-    e2 += (r - radius_m) * (r - radius_m);
+    sum += r - radius_m;
+    sum2 += (r - radius_m) * (r - radius_m);
+    ++used;
     M += (d / r) * (d / r).transpose();
   }
-  const double sigma_e2 = e2 / std::max<double>(1.0, static_cast<double>(edge_points.size()) - 2.0);
+  const double n_used = static_cast<double>(std::max<std::size_t>(used, 1));
+  const double scatter2 = std::max(0.0, sum2 - sum * sum / n_used);
+  const double sigma_e2 = scatter2 / std::max(1.0, n_used - 3.0);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig_m(M);
   const double weakest = eig_m.eigenvalues()(0);
   s.center_in_plane_m = weakest > 1e-9 ? std::sqrt(sigma_e2 / weakest) : radius_m;

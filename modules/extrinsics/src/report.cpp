@@ -102,8 +102,11 @@ std::string format_alignment_report(const std::string& camera_name, const EdgeAl
        << " cm)\n";
   }
   if (r.covariance_valid) {
-    os << "\nCovariance (rx ry rz tx ty tz; rad^2, m^2; a lower bound, the circle points of a hole "
-          "are correlated):\n\n```\n";
+    const CovarianceTerms& t = r.covariance_terms;
+    os << "\nCovariance (rx ry rz tx ty tz; rad^2, m^2): image edges (clustered per hole) + the LIDAR "
+          "circles' errors ("
+       << t.holes_with_sigma << " of " << t.num_holes << " holes with a sigma from their detection)"
+       << (t.jackknife_used ? ", at least the leave-one-view-out scatter" : "") << ":\n\n```\n";
     os << std::scientific << std::setprecision(3);
     for (int i = 0; i < 6; ++i) {
       for (int j = 0; j < 6; ++j) os << (j ? " " : "") << std::setw(10) << r.covariance(i, j);

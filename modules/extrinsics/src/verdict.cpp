@@ -221,11 +221,20 @@ void check_agreement(const std::vector<TargetView>& views, const core::PinholeCa
   for (int k : used) {
     ViewVerdict& vv = v.views[k];
     std::vector<TargetView> subset;
-    for (int j : used)
-      if (j != k) subset.push_back(views[j]);
+    EdgeAlignmentOptions opts_k = opts;
+    opts_k.covariance_model.per_view.clear();
+    const auto& per_view = opts.covariance_model.per_view;
+    for (int j : used) {
+      if (j == k) continue;
+      subset.push_back(views[j]);
+      // The holes' LIDAR sigmas follow their views (an empty entry: the default).
+      opts_k.covariance_model.per_view.push_back(static_cast<size_t>(j) < per_view.size()
+                                                     ? per_view[j]
+                                                     : std::vector<LidarHoleSigma>{});
+    }
     EdgeAlignmentResult rk;
     try {
-      rk = align_edges(subset, camera, opts, r.T_camera_lidar);
+      rk = align_edges(subset, camera, opts_k, r.T_camera_lidar);
     } catch (const std::exception& e) {
       vv.problem = std::string("without it the solve fails (") + e.what() + ")";
       f.add(VerdictLevel::kWarn, vv.name + ": " + vv.problem);
@@ -262,23 +271,24 @@ void check_agreement(const std::vector<TargetView>& views, const core::PinholeCa
   }
 }
 
-/// The weakest direction of the information matrix (the largest axis of the covariance),
-/// expressed as the motion it causes at the boards: a rotation about the mean board centre c
-/// (scaled by the mean depth, so it reads as metres at the board) and the translation of c.
-/// A step (dr, dt) of to_vector6 moves a camera-frame point x by w x (x - t) + dt with
-/// w = Jl dr, so c moves by w x (c - t) + dt.
+/// The weakest direction of the estimate, as the motion it causes at the boards: a step
+/// (dr, dt) of to_vector6 moves a camera-frame point x by w x (x - t) + dt with w = Jl dr,
+/// i.e. by J_x (dr, dt). Over the circle points x of the used views, M = mean J_x^T J_x, so
+/// a deviation d of the parameters moves them by sqrt(d^T M d) RMS. With C = L L^T the
+/// covariance, the 1-sigma deviations are d = L z, |z| = 1, and the largest RMS motion is
+/// sqrt(lambda_max(L^T M L)) along d = L z_max (the smallest is the strongest direction's).
+/// A rotation about the viewing direction moves the boards by its angle times their offset
+/// from the axis, a rotation about an in-plane axis by its angle times their depth: this is
+/// what a colouring error at the boards' distance is made of.
 void check_observability(const std::vector<TargetView>& views, const EdgeAlignmentResult& r,
                          const VerdictOptions& o, CalibrationVerdict& v, Findings& f) {
   if (v.used_views == 0) return;
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero(), centre = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   for (size_t k = 0; k < views.size(); ++k) {
     if (!v.views[k].used) continue;
-    const BoardInCamera b = board_in_camera(views[k], r.T_camera_lidar);
-    normal += b.normal;
-    centre += b.centroid / v.used_views;
+    normal += board_in_camera(views[k], r.T_camera_lidar).normal;
   }
   normal = normal.norm() > 1e-9 ? normal.normalized() : Eigen::Vector3d(0, 0, -1);
-  const double depth = std::max(centre.z(), 0.1);
   const std::string one = v.used_views == 1 ? "one view: " : "";
   if (!r.covariance_valid || !r.covariance.allFinite()) {
     f.add(VerdictLevel::kWarn, one + "the covariance is not available (the information matrix is singular): "
@@ -288,18 +298,51 @@ void check_observability(const std::vector<TargetView>& views, const EdgeAlignme
   const Eigen::Vector3d r0 = core::to_vector6(r.T_camera_lidar).head<3>();
   Eigen::Matrix3d Jl;
   for (int i = 0; i < 3; ++i) Jl.col(i) = physical_rotation(r0, Eigen::Vector3d::Unit(i));
-  const Eigen::Vector3d lever = centre - r.T_camera_lidar.translation();
-  Eigen::Matrix3d lever_cross;
-  lever_cross << 0, -lever.z(), lever.y(), lever.z(), 0, -lever.x(), -lever.y(), lever.x(), 0;
-  core::Matrix6d J = core::Matrix6d::Zero();
-  J.topLeftCorner<3, 3>() = depth * Jl;
-  J.bottomLeftCorner<3, 3>() = -lever_cross * Jl;
-  J.bottomRightCorner<3, 3>().setIdentity();
-  const Eigen::SelfAdjointEigenSolver<core::Matrix6d> eig(J * r.covariance * J.transpose());
+  const Eigen::Vector3d t = r.T_camera_lidar.translation();
+  // Second moments of the lever arms: mean J_x^T J_x needs only mean(l) and mean(l l^T)
+  // of l = x - t, since |w x l + dt|^2 is quadratic in l.
+  Eigen::Vector3d mean_l = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d mean_llt = Eigen::Matrix3d::Zero();
+  size_t count = 0;
+  for (size_t k = 0; k < views.size(); ++k) {
+    if (!v.views[k].used) continue;
+    for (const auto& p : views[k].lidar_circle_points) {
+      const Eigen::Vector3d l = r.T_camera_lidar * p - t;
+      mean_l += l;
+      mean_llt += l * l.transpose();
+      ++count;
+    }
+  }
+  if (count == 0) return;
+  mean_l /= static_cast<double>(count);
+  mean_llt /= static_cast<double>(count);
+  // |w x l + dt|^2 = w^T (|l|^2 I - l l^T) w + 2 dt^T (w x l) + |dt|^2; w x l = -[l]x w.
+  Eigen::Matrix3d cross_mean;
+  cross_mean << 0, -mean_l.z(), mean_l.y(), mean_l.z(), 0, -mean_l.x(), -mean_l.y(), mean_l.x(), 0;
+  core::Matrix6d M = core::Matrix6d::Zero();
+  M.topLeftCorner<3, 3>() = Jl.transpose() * (mean_llt.trace() * Eigen::Matrix3d::Identity() - mean_llt) * Jl;
+  M.bottomLeftCorner<3, 3>() = -cross_mean * Jl;
+  M.topRightCorner<3, 3>() = M.bottomLeftCorner<3, 3>().transpose();
+  M.bottomRightCorner<3, 3>().setIdentity();
+  // The geometry's covariance: the model terms without the jackknife, whose leave-one-out
+  // scatter measures the views' agreement (check_views judges that) and, dominated by the
+  // most leveraged view, overstates every direction alike.
+  const CovarianceTerms& terms = r.covariance_terms;
+  const core::Matrix6d model = terms.valid ? core::Matrix6d(terms.sandwich + terms.systematic) : r.covariance;
+  const Eigen::SelfAdjointEigenSolver<core::Matrix6d> cov_eig(model.allFinite() ? model : r.covariance);
+  const core::Matrix6d L =
+      cov_eig.eigenvectors() * cov_eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<core::Matrix6d> eig(L.transpose() * M * L);
   v.weakest_sigma_m = std::sqrt(std::max(eig.eigenvalues()(5), 0.0));
   v.strongest_sigma_m = std::sqrt(std::max(eig.eigenvalues()(0), 0.0));
-  const core::Vector6d dir = eig.eigenvectors().col(5);
-  const auto [words, advice] = direction_in_words(dir.head<3>(), dir.tail<3>(), normal);
+  // Name the weakest deviation by its larger part: the RMS motion its rotation alone causes
+  // at the boards against its translation.
+  const core::Vector6d d = L * eig.eigenvectors().col(5);
+  const Eigen::Vector3d w = Jl * d.head<3>();
+  const double rotation_motion =
+      std::sqrt(std::max(0.0, w.dot((mean_llt.trace() * Eigen::Matrix3d::Identity() - mean_llt) * w)));
+  const Eigen::Vector3d rotation_m = w.norm() > 0 ? Eigen::Vector3d(w.normalized() * rotation_motion) : w;
+  const auto [words, advice] = direction_in_words(rotation_m, d.tail<3>(), normal);
   v.weakest_direction = words;
   const std::string numbers = fmt(" (1-sigma %.2f cm at the board, WARN beyond %.2f cm; the strongest direction's is",
                                   v.weakest_sigma_m * 100, o.weak_sigma_m * 100) +

@@ -72,6 +72,12 @@ TEST(Covariance, LidarHoleSigmaFollowsTheNoise) {
   EXPECT_NEAR(s.center_normal_m, 0.01 / 20.0, 0.15 * 0.01 / 20.0);
   EXPECT_NEAR(s.tilt_rad, 0.01 / std::sqrt(su2), 0.15 * 0.01 / std::sqrt(su2));
   EXPECT_THROW(ext::lidar_hole_sigma({c, c}, board, c, n, 0.3), std::invalid_argument);
+  // The beam footprint widens the hole: edges 1.5 cm outside the nominal radius, all round,
+  // leave the centre where it was and its uncertainty unchanged (not sqrt(1^2 + 1.5^2) cm).
+  std::vector<Eigen::Vector3d> widened;
+  for (const auto& p : edges) widened.push_back(c + (p - c) * (1.0 + 0.015 / (p - c).norm()));
+  EXPECT_NEAR(ext::lidar_hole_sigma(widened, board, c, n, 0.3).center_in_plane_m, s.center_in_plane_m,
+              0.01 * s.center_in_plane_m);
 }
 
 // The systematic term is the linear propagation of the LIDAR circles' errors: perturb each

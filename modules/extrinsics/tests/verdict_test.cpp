@@ -35,8 +35,12 @@ std::vector<TargetView> noisy_views(const core::PinholeCamera& camera, const std
 TEST(Verdict, ConsistentViewsPass) {
   const core::PinholeCamera camera(testing::table1_intrinsics());
   const auto views = noisy_views(camera, testing::table1_placements(), 1);
-  const EdgeAlignmentResult r = align_edges(views, camera);
-  const CalibrationVerdict v = judge_calibration(views, camera, r);
+  // The covariance is told the circles' true uncertainty (5 mm per axis, no tilt), as the
+  // app tells it each hole's from its detection.
+  VerdictOptions o;
+  o.alignment.covariance_model.per_view.assign(views.size(), {LidarHoleSigma{0.005, 0.005, 0.0}});
+  const EdgeAlignmentResult r = align_edges(views, camera, o.alignment);
+  const CalibrationVerdict v = judge_calibration(views, camera, r, o);
   EXPECT_EQ(v.level, VerdictLevel::kPass) << v.summary();
   EXPECT_EQ(v.used_views, 8);
   // The numbers behind the PASS: the residual is within the expected noise (0.3 px edges,
@@ -46,7 +50,6 @@ TEST(Verdict, ConsistentViewsPass) {
   EXPECT_LT(v.reprojection_px, v.expected_reprojection_px);
   // Leave-one-view-out was run and, the views being consistent, stays far inside the bound
   // of disagreement and names no view.
-  const VerdictOptions o;
   EXPECT_GE(v.lovo_max_translation_cm, 0.0);
   EXPECT_LT(v.lovo_max_translation_cm, 0.5 * o.lovo_fail_cm);
   EXPECT_LT(v.lovo_max_rotation_deg, 0.5 * o.lovo_fail_deg);
