@@ -26,6 +26,7 @@
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/extrinsics/covariance.hpp"
 #include "rgbdt/extrinsics/edge_alignment.hpp"
+#include "rgbdt/extrinsics/verdict.hpp"
 #include "rgbdt/sim/calibration_session.hpp"
 
 namespace rgbdt::extrinsics::study {
@@ -59,6 +60,9 @@ struct CaseResult {
   double sigma_rot_deg = 0.0, sigma_trans_cm = 0.0;  ///< sqrt(trace) of the blocks (total)
   double sigma_rot_jac_deg = 0.0, sigma_trans_jac_cm = 0.0;
   bool jackknife_used = false;
+  /// judge_calibration's level ("PASS", "WARN", "FAIL") and, for a FAIL, its first reason.
+  std::string verdict;
+  std::string verdict_reason;
   double seconds = 0.0;
 };
 
@@ -175,6 +179,15 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) 
     out.sigma_rot_jac_deg = std::sqrt(J.topLeftCorner<3, 3>().trace()) * 180.0 / M_PI;
     out.sigma_trans_jac_cm = std::sqrt(J.bottomRightCorner<3, 3>().trace()) * 100.0;
     out.jackknife_used = r.covariance_terms.jackknife_used;
+    VerdictOptions vo;
+    vo.alignment = options;
+    const CalibrationVerdict v = judge_calibration(views, camera, r, vo);
+    out.verdict = to_string(v.level);
+    for (const auto& reason : v.reasons)
+      if (reason.level == VerdictLevel::kFail) {
+        out.verdict_reason = reason.text;
+        break;
+      }
     out.ok = true;
   } catch (const std::exception& e) {
     out.reason = std::string("align_edges: ") + e.what();
@@ -183,8 +196,18 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) 
   return out;
 }
 
+/// chi-square quantile, 6 degrees of freedom, 0.999: a delivered estimate beyond it is wrong
+/// by more than its covariance allows (silently wrong).
+inline constexpr double kChi2_6_999 = 22.457744484825326;
+
+/// The coverage and NEES are over the delivered cases (verdict PASS or WARN: what a user
+/// gets as extrinsics_<camera>.yaml); a FAILed case is written as .rejected.yaml only.
 struct Summary {
   int cases = 0, scored = 0;
+  int failed = 0;           ///< scored cases the verdict FAILed
+  int silently_wrong = 0;   ///< delivered with NEES beyond the 99.9 % quantile
+  int failed_but_right = 0; ///< FAILed although inside the 95 % ellipsoid
+  int cases_scored_total = 0;  ///< cases with a solution (delivered + failed)
   double inside95 = 0.0, inside95_jacobian = 0.0;  ///< fractions of the scored cases
   double mean_nees = 0.0, mean_nees_jacobian = 0.0;
   double median_sigma_rot_deg = 0.0, median_sigma_trans_cm = 0.0;
@@ -204,6 +227,13 @@ inline Summary summarize(const std::vector<CaseResult>& results) {
   std::vector<double> sr, st, srj, stj, er, et;
   for (const CaseResult& r : results) {
     if (!r.ok) continue;
+    ++s.cases_scored_total;
+    if (r.verdict == "FAIL") {
+      ++s.failed;
+      s.failed_but_right += r.nees <= kChi2_6_95;
+      continue;
+    }
+    s.silently_wrong += r.nees > kChi2_6_999;
     ++s.scored;
     s.inside95 += r.nees <= kChi2_6_95;
     s.inside95_jacobian += r.nees_jacobian <= kChi2_6_95;
