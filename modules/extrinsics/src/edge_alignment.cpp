@@ -19,6 +19,7 @@
 #include "lm_polish.hpp"
 #include "projection.hpp"
 #include "rgbdt/core/log.hpp"
+#include "rgbdt/extrinsics/hole_pairing.hpp"
 #include "rgbdt/extrinsics/initial_guess.hpp"
 
 namespace rgbdt::extrinsics {
@@ -350,9 +351,20 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     int holes = 0;
     for (size_t k : usable_index) {
       const TargetView& v = views[k];
-      const size_t n = std::min(v.lidar_centers.size(), v.image_ellipses.size());
-      for (size_t h = 0; h < n; ++h) {
-        const Eigen::Vector2d px(v.image_ellipses[h].center.x, v.image_ellipses[h].center.y);
+      // Holes paired by position at the start pose, not by the detectors' order.
+      std::vector<Eigen::Vector2d> start_px;
+      const Eigen::Isometry3d T0 = core::from_vector6(x);
+      for (size_t h = 0; h < v.lidar_centers.size(); ++h) {
+        const Eigen::Vector3d pc = T0 * v.lidar_centers[h];
+        Eigen::Vector2d p;
+        project_total(cam, pc.data(), p.data());
+        start_px.push_back(p);
+      }
+      if (start_px.size() != v.lidar_centers.size() || start_px.size() > v.image_ellipses.size()) continue;
+      const std::vector<size_t> pairing = pair_holes_by_position(start_px, v.image_ellipses);
+      for (size_t h = 0; h < start_px.size(); ++h) {
+        const cv::Point2f& c = v.image_ellipses[pairing[h]].center;
+        const Eigen::Vector2d px(c.x, c.y);
         problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CenterResidual, 2, 6>(
                                      new CenterResidual(&cam, v.lidar_centers[h], px)),
                                  new ceres::HuberLoss(20.0), x.data());

@@ -5,11 +5,13 @@
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
+#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
 
 #include "rgbdt/core/transform.hpp"
+#include "rgbdt/extrinsics/hole_pairing.hpp"
 
 namespace rgbdt::extrinsics {
 
@@ -61,12 +63,14 @@ double expected_px(const VerdictOptions& o, const core::PinholeCamera& camera, d
 
 /// RMS distance [px] between each LIDAR hole, projected with T (the centre of the ellipse
 /// fitted to its projected circle, so the perspective shift of an ellipse's centre cancels)
-/// and the centre of its image ellipse. Sets `compared` to the number of holes used.
+/// and the centre of the image ellipse it is paired with. The two detectors order the holes
+/// of a multi-hole board each from its own viewpoint, so the pairing is the one-to-one
+/// assignment of least total squared distance (pair_holes_by_position). Sets `compared` to the number of holes used.
 double hole_reprojection_px(const TargetView& view, const core::PinholeCamera& camera, const Eigen::Isometry3d& T,
                             int* compared) {
   *compared = 0;
   const size_t n = std::min({view.lidar_centers.size(), view.lidar_normals.size(), view.image_ellipses.size()});
-  double sum2 = 0.0;
+  std::vector<cv::Point2f> centres;  // of the projected LIDAR holes that project whole
   for (size_t k = 0; k < n; ++k) {
     const Eigen::Vector3d normal = view.lidar_normals[k].normalized();
     Eigen::Vector3d e1 = normal.unitOrthogonal(), e2 = normal.cross(e1);
@@ -79,12 +83,18 @@ double hole_reprojection_px(const TargetView& view, const core::PinholeCamera& c
       projected.emplace_back(static_cast<float>(px.x()), static_cast<float>(px.y()));
     }
     if (projected.size() < 72) continue;
-    const cv::Point2f c = cv::fitEllipse(projected).center;
-    const cv::Point2f d = c - view.image_ellipses[k].center;
-    sum2 += double(d.x) * d.x + double(d.y) * d.y;
-    ++*compared;
+    centres.push_back(cv::fitEllipse(projected).center);
   }
-  return *compared > 0 ? std::sqrt(sum2 / *compared) : -1.0;
+  if (centres.empty()) return -1.0;
+  std::vector<Eigen::Vector2d> points;
+  for (const auto& c : centres) points.emplace_back(c.x, c.y);
+  const std::vector<cv::RotatedRect> ellipses(view.image_ellipses.begin(), view.image_ellipses.begin() + n);
+  const std::vector<size_t> pairing = pair_holes_by_position(points, ellipses);
+  double best = 0.0;
+  for (size_t i = 0; i < points.size(); ++i)
+    best += (points[i] - Eigen::Vector2d(ellipses[pairing[i]].center.x, ellipses[pairing[i]].center.y)).squaredNorm();
+  *compared = static_cast<int>(centres.size());
+  return std::sqrt(best / *compared);
 }
 
 /// Physical rotation axis (camera frame) of a step `dr` of the rotation vector `r`:

@@ -57,6 +57,33 @@ TEST(Verdict, ConsistentViewsPass) {
   EXPECT_NE(format_verdict_report(v).find("**Verdict: PASS**"), std::string::npos);
 }
 
+// The LIDAR and image detectors each order a multi-hole board's holes from their own
+// viewpoint; the hole-centre check pairs them by position, not by index. Two-hole views
+// (Table 1's placements in pairs) with the image ellipses listed in reverse order.
+TEST(Verdict, HoleCentresArePairedWhateverTheDetectorsOrder) {
+  const core::PinholeCamera camera(testing::table1_intrinsics());
+  const auto singles = noisy_views(camera, testing::table1_placements(), 4);
+  std::vector<TargetView> views;
+  for (size_t k = 0; k + 1 < singles.size(); k += 2) {
+    TargetView v = singles[k];
+    const TargetView& w = singles[k + 1];
+    v.lidar_circle_points.insert(v.lidar_circle_points.end(), w.lidar_circle_points.begin(), w.lidar_circle_points.end());
+    v.image_edge_points_px.insert(v.image_edge_points_px.end(), w.image_edge_points_px.begin(), w.image_edge_points_px.end());
+    v.lidar_centers.push_back(w.lidar_centers[0]);
+    v.lidar_normals.push_back(w.lidar_normals[0]);
+    v.image_ellipses.insert(v.image_ellipses.begin(), w.image_ellipses[0]);  // reversed
+    views.push_back(std::move(v));
+  }
+  VerdictOptions o;
+  o.alignment.covariance_model.per_view.assign(views.size(), std::vector<LidarHoleSigma>(2, {0.005, 0.005, 0.0}));
+  const EdgeAlignmentResult r = align_edges(views, camera, o.alignment, testing::true_T_camera_lidar());
+  const CalibrationVerdict v = judge_calibration(views, camera, r, o);
+  ASSERT_GE(v.reprojection_px, 0.0);
+  // Paired by index the holes are boards apart (hundreds of px).
+  EXPECT_LT(v.reprojection_px, v.expected_reprojection_px) << v.summary();
+  EXPECT_NE(v.level, VerdictLevel::kFail) << v.summary();
+}
+
 TEST(Verdict, OneViewWarnsAndNamesTheWeakDirection) {
   const core::PinholeCamera camera(testing::table1_intrinsics());
   const auto views = noisy_views(camera, {testing::table1_placements()[2]}, 2);
