@@ -19,9 +19,8 @@ constexpr float kEdgeMarginCells = 0.75f;
 /// Each near sample on a depth edge also covers a square of half-width kEdgeSplatFraction
 /// times its spacing to its neighbours (at least one cell, at most kMaxEdgeSplatCells):
 /// insurance for edges the mesh misses (a neighbouring beam without a return leaves no
-/// triangle). On a simulated 12 s street session 0.1 keeps 98 % of the truly visible
-/// points coloured; the full-spacing squares of the earlier edge handling (0.3 and no
-/// pulled regions) kept 95 %.
+/// triangle). On a simulated 12 s street a fraction of 0.1 keeps 98 % of the truly
+/// visible points coloured; full-spacing squares (0.3, without pulled regions) keep 95 %.
 constexpr int kMaxEdgeSplatCells = 12;
 constexpr float kEdgeSplatFraction = 0.1f;
 /// Farthest a point lies from its nearest z-buffer cell centre [cells].
