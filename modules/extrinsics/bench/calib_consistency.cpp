@@ -7,8 +7,8 @@
 //
 // Each case is judged (PASS/WARN/FAIL) as the app judges it; the coverage is over the
 // delivered (not FAILed) cases, and a delivered case beyond its 99.9 % ellipsoid counts as
-// silently wrong. Prints one line per case and the summary: the fraction of cases whose error lies inside
-// the 95 % ellipsoid (target 90-99 %), the mean NEES (target 3-9; chi-square with 6 degrees
+// silently wrong. Prints one line per case and the summary: the fraction of delivered cases
+// whose error lies inside the 95 % ellipsoid (target 90-99 %), the mean NEES (target 3-9; chi-square with 6 degrees
 // of freedom has mean 6), the same for the Jacobian-only covariance, and the median
 // reported 1-sigma against the median true error. Exits 1 when a target is missed.
 #include <CLI/CLI.hpp>

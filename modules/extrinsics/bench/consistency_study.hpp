@@ -203,11 +203,12 @@ inline constexpr double kChi2_6_999 = 22.457744484825326;
 /// The coverage and NEES are over the delivered cases (verdict PASS or WARN: what a user
 /// gets as extrinsics_<camera>.yaml); a FAILed case is written as .rejected.yaml only.
 struct Summary {
-  int cases = 0, scored = 0;
-  int failed = 0;           ///< scored cases the verdict FAILed
-  int silently_wrong = 0;   ///< delivered with NEES beyond the 99.9 % quantile
-  int failed_but_right = 0; ///< FAILed although inside the 95 % ellipsoid
+  int cases = 0;
   int cases_scored_total = 0;  ///< cases with a solution (delivered + failed)
+  int scored = 0;              ///< delivered cases, the ones the statistics below are over
+  int failed = 0;              ///< solved cases the verdict FAILed
+  int silently_wrong = 0;      ///< delivered with NEES beyond the 99.9 % quantile
+  int failed_but_right = 0;    ///< FAILed although inside the 95 % ellipsoid
   double inside95 = 0.0, inside95_jacobian = 0.0;  ///< fractions of the scored cases
   double mean_nees = 0.0, mean_nees_jacobian = 0.0;
   double median_sigma_rot_deg = 0.0, median_sigma_trans_cm = 0.0;

@@ -349,18 +349,18 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   if (options.coarse_center_stage && !paper) {
     ceres::Problem problem;
     int holes = 0;
+    // Holes paired by position at the start pose, not by the detectors' order.
+    const Eigen::Isometry3d T0 = core::from_vector6(x);
     for (size_t k : usable_index) {
       const TargetView& v = views[k];
-      // Holes paired by position at the start pose, not by the detectors' order.
+      if (v.lidar_centers.size() > v.image_ellipses.size()) continue;
       std::vector<Eigen::Vector2d> start_px;
-      const Eigen::Isometry3d T0 = core::from_vector6(x);
-      for (size_t h = 0; h < v.lidar_centers.size(); ++h) {
-        const Eigen::Vector3d pc = T0 * v.lidar_centers[h];
+      for (const Eigen::Vector3d& c : v.lidar_centers) {
+        const Eigen::Vector3d pc = T0 * c;
         Eigen::Vector2d p;
         project_total(cam, pc.data(), p.data());
         start_px.push_back(p);
       }
-      if (start_px.size() != v.lidar_centers.size() || start_px.size() > v.image_ellipses.size()) continue;
       const std::vector<size_t> pairing = pair_holes_by_position(start_px, v.image_ellipses);
       for (size_t h = 0; h < start_px.size(); ++h) {
         const cv::Point2f& c = v.image_ellipses[pairing[h]].center;

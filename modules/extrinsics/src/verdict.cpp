@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
-#include <limits>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -65,7 +64,8 @@ double expected_px(const VerdictOptions& o, const core::PinholeCamera& camera, d
 /// fitted to its projected circle, so the perspective shift of an ellipse's centre cancels)
 /// and the centre of the image ellipse it is paired with. The two detectors order the holes
 /// of a multi-hole board each from its own viewpoint, so the pairing is the one-to-one
-/// assignment of least total squared distance (pair_holes_by_position). Sets `compared` to the number of holes used.
+/// assignment of least total squared distance (pair_holes_by_position). Sets `compared` to
+/// the number of holes used.
 double hole_reprojection_px(const TargetView& view, const core::PinholeCamera& camera, const Eigen::Isometry3d& T,
                             int* compared) {
   *compared = 0;
@@ -335,7 +335,7 @@ void check_observability(const std::vector<TargetView>& views, const EdgeAlignme
   M.topRightCorner<3, 3>() = M.bottomLeftCorner<3, 3>().transpose();
   M.bottomRightCorner<3, 3>().setIdentity();
   // The geometry's covariance: the model terms without the jackknife, whose leave-one-out
-  // scatter measures the views' agreement (check_views judges that) and, dominated by the
+  // scatter measures the views' agreement (check_agreement judges that) and, dominated by the
   // most leveraged view, overstates every direction alike.
   const CovarianceTerms& terms = r.covariance_terms;
   const core::Matrix6d model = terms.valid ? core::Matrix6d(terms.sandwich + terms.systematic) : r.covariance;

@@ -9,6 +9,8 @@
 #include <limits>
 #include <numeric>
 #include <opencv2/core/types.hpp>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace rgbdt::extrinsics {
@@ -16,13 +18,16 @@ namespace rgbdt::extrinsics {
 /// For each projected LIDAR hole centre [px], the index of the image ellipse it is paired
 /// with: the one-to-one assignment of least total squared distance between the points and
 /// the ellipse centres (every permutation for up to 7 holes; beyond that the given order).
-/// Needs points.size() <= ellipses.size(); returns the identity otherwise.
+/// Throws std::invalid_argument when there are more points than ellipses.
 inline std::vector<std::size_t> pair_holes_by_position(const std::vector<Eigen::Vector2d>& points,
                                                        const std::vector<cv::RotatedRect>& ellipses) {
+  if (points.size() > ellipses.size())
+    throw std::invalid_argument("pair_holes_by_position: " + std::to_string(points.size()) + " holes for " +
+                                std::to_string(ellipses.size()) + " ellipses (expected at most as many)");
   std::vector<std::size_t> perm(ellipses.size());
   std::iota(perm.begin(), perm.end(), std::size_t{0});
-  std::vector<std::size_t> best(perm.begin(), perm.begin() + std::min(points.size(), perm.size()));
-  if (points.size() > ellipses.size() || ellipses.size() > 7) return best;
+  std::vector<std::size_t> best(perm.begin(), perm.begin() + static_cast<std::ptrdiff_t>(points.size()));
+  if (ellipses.size() > 7) return best;
   double best_cost = std::numeric_limits<double>::infinity();
   do {
     double cost = 0.0;

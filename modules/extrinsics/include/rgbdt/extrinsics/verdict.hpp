@@ -57,9 +57,9 @@ struct VerdictOptions {
   double lovo_chi2_bound = 16.81;
   double lovo_influence_ratio = 3.0;
   /// Observability: WARN when the 1-sigma along the weakest direction, as the RMS motion it
-  /// causes at the boards (over the circle points of the used views), exceeds this [m]. The default is the placement error
-  /// of one LIDAR circle: a direction the views pin no better than one hole's fit does is
-  /// not constrained by the calibration's geometry. One view always gets a WARN.
+  /// causes at the boards (over the circle points of the used views), exceeds this [m]. The
+  /// default is the placement error of one LIDAR circle: a direction the views pin no better
+  /// than one hole's fit does is not constrained by the calibration's geometry. One view always gets a WARN.
   double weak_sigma_m = 0.01;
   /// Options of the leave-one-view-out solves (the ones the estimate was made with).
   EdgeAlignmentOptions alignment;
