@@ -322,6 +322,10 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     result.T_camera_lidar_initial = guess.T_camera_lidar;
     result.initial_from_closed_form = true;
     core::log_info("extrinsics: closed-form initial guess (", guess.message, ")");
+    if (guess.ambiguous) {
+      result.initial_guess_ambiguity = guess.ambiguity;
+      core::log_warning("extrinsics: ", guess.ambiguity);
+    }
   }
 
   const ProjectionModel cam = detail::make_projection_model(camera);

@@ -4,12 +4,15 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numeric>
+#include <optional>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
 
 #include "rgbdt/core/transform.hpp"
+#include "rgbdt/extrinsics/hole_pairing.hpp"
 
 namespace rgbdt::extrinsics {
 
@@ -37,6 +40,12 @@ double center_reprojection_rms(const std::vector<Correspondence>& cs,
   }
   return std::sqrt(sum2 / std::max<size_t>(1, cs.size()));
 }
+
+/// Two start poses at least this far apart in rotation whose fits differ by less than
+/// kAmbiguousRmsFactor x + kAmbiguousRmsPx are reported as ambiguous.
+constexpr double kAmbiguousRotationRad = 20.0 * M_PI / 180.0;
+constexpr double kAmbiguousRmsFactor = 1.5;
+constexpr double kAmbiguousRmsPx = 2.0;
 
 }  // namespace
 
@@ -126,26 +135,59 @@ Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
   return core::make_transform(R, mean_b - R * mean_a);
 }
 
-InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& views,
-                                             const core::PinholeCamera& camera) {
-  InitialGuessResult out;
-  std::vector<Correspondence> cs;
-  for (const auto& v : views) {
-    const size_t n = std::min({v.lidar_centers.size(), v.lidar_normals.size(), v.image_ellipses.size()});
-    for (size_t k = 0; k < n; ++k) {
-      if (v.image_ellipses[k].size.width > 1.0f && v.image_ellipses[k].size.height > 1.0f &&
-          v.radius_m > 0.0 && v.lidar_centers[k].allFinite() && v.lidar_normals[k].allFinite())
-        cs.push_back({v.lidar_centers[k], v.lidar_normals[k].normalized(), v.image_ellipses[k], v.radius_m});
-    }
-  }
-  out.num_correspondences = static_cast<int>(cs.size());
-  if (cs.size() < 2) {
-    out.message = "needs at least 2 holes with a LIDAR centre, normal and image ellipse (got " +
-                  std::to_string(cs.size()) + "); a single circle leaves the rotation about "
-                  "its normal unobservable";
-    return out;
-  }
+namespace {
 
+/// One view's holes as the two detectors list them (each in its own order).
+struct ViewHoles {
+  std::vector<Eigen::Vector3d> centers, normals;  // LIDAR frame
+  std::vector<cv::RotatedRect> ellipses;          // image
+  double radius_m = 0.0;
+};
+
+/// Which ellipse each LIDAR hole of each view is paired with.
+using Pairing = std::vector<std::vector<std::size_t>>;
+
+std::vector<Correspondence> correspondences(const std::vector<ViewHoles>& views, const Pairing& pairing) {
+  std::vector<Correspondence> cs;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    for (std::size_t k = 0; k < pairing[v].size(); ++k)
+      cs.push_back({views[v].centers[k], views[v].normals[k], views[v].ellipses[pairing[v][k]], views[v].radius_m});
+  }
+  return cs;
+}
+
+/// The detectors' own order: hole k with ellipse k.
+Pairing index_pairing(const std::vector<ViewHoles>& views) {
+  Pairing p(views.size());
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    p[v].resize(std::min(views[v].centers.size(), views[v].ellipses.size()));
+    std::iota(p[v].begin(), p[v].end(), std::size_t{0});
+  }
+  return p;
+}
+
+/// Each view's LIDAR holes projected with T and paired with the nearest ellipses; nullopt
+/// when a centre falls behind the camera.
+std::optional<Pairing> pairing_at(const std::vector<ViewHoles>& views, const core::PinholeCamera& camera,
+                                  const Eigen::Isometry3d& T) {
+  Pairing p(views.size());
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    if (views[v].centers.size() > views[v].ellipses.size()) {
+      p[v] = index_pairing({views[v]})[0];
+      continue;
+    }
+    std::vector<Eigen::Vector2d> px(views[v].centers.size());
+    for (std::size_t k = 0; k < px.size(); ++k)
+      if (!camera.project(T * views[v].centers[k], &px[k])) return std::nullopt;
+    p[v] = pair_holes_by_position(px, views[v].ellipses);
+  }
+  return p;
+}
+
+/// T_camera_lidar candidates for one pairing: PnP on the hole centres and the ellipse poses
+/// aligned with the LIDAR centres and normals.
+std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::vector<Correspondence>& cs,
+                                                                     const core::PinholeCamera& camera) {
   std::vector<std::pair<Eigen::Isometry3d, std::string>> candidates;
   // (A) PnP on the hole centres of all views (object points in the LIDAR frame).
   if (cs.size() >= 4) {
@@ -174,7 +216,7 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
   std::vector<CircleInCamera> circles;
   for (const auto& c : cs) circles.push_back(circle_from_ellipse(c.ellipse, c.radius_m, camera));
   std::vector<Eigen::Vector3d> a, b, na, nb;
-  for (size_t i = 0; i < cs.size(); ++i) {
+  for (std::size_t i = 0; i < cs.size(); ++i) {
     a.push_back(cs[i].center_lidar);
     b.push_back(circles[i].center);
     na.push_back(cs[i].normal_lidar);
@@ -183,16 +225,17 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
   // the one closest to a centres-only alignment.
   auto alignment_cost = [&](const Eigen::Isometry3d& T, const std::vector<Eigen::Vector3d>& nbs) {
     double cost = 0.0;
-    for (size_t i = 0; i < a.size(); ++i) cost += (T * a[i] - b[i]).squaredNorm();
-    for (size_t i = 0; i < na.size(); ++i) cost += (T.linear() * na[i] - nbs[i]).squaredNorm();
+    for (std::size_t i = 0; i < a.size(); ++i) cost += (T * a[i] - b[i]).squaredNorm();
+    for (std::size_t i = 0; i < na.size(); ++i) cost += (T.linear() * na[i] - nbs[i]).squaredNorm();
     return cost;
   };
+  const std::string how = "ellipse poses + Kabsch on " + std::to_string(cs.size()) + " holes";
   if (cs.size() <= 10) {
     double best = std::numeric_limits<double>::infinity();
     Eigen::Isometry3d best_T = Eigen::Isometry3d::Identity();
     for (unsigned mask = 0; mask < (1u << cs.size()); ++mask) {
       nb.clear();
-      for (size_t i = 0; i < cs.size(); ++i) nb.push_back(circles[i].normals[(mask >> i) & 1u]);
+      for (std::size_t i = 0; i < cs.size(); ++i) nb.push_back(circles[i].normals[(mask >> i) & 1u]);
       const Eigen::Isometry3d T = align_rigid(a, b, na, nb);
       const double cost = alignment_cost(T, nb);
       if (cost < best) {
@@ -200,38 +243,154 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
         best_T = T;
       }
     }
-    candidates.emplace_back(best_T, "ellipse poses + Kabsch on " + std::to_string(cs.size()) + " holes");
+    candidates.emplace_back(best_T, how);
   } else {
     const Eigen::Isometry3d T0 = align_rigid(a, b);
     nb.clear();
-    for (size_t i = 0; i < cs.size(); ++i) {
+    for (std::size_t i = 0; i < cs.size(); ++i) {
       const Eigen::Vector3d n = T0.linear() * na[i];
       nb.push_back((n - circles[i].normals[0]).norm() < (n - circles[i].normals[1]).norm()
                        ? circles[i].normals[0] : circles[i].normals[1]);
     }
-    candidates.emplace_back(align_rigid(a, b, na, nb),
-                            "ellipse poses + Kabsch on " + std::to_string(cs.size()) + " holes");
+    candidates.emplace_back(align_rigid(a, b, na, nb), how);
+  }
+  return candidates;
+}
+
+/// Start poses from one view of three or more holes: its LIDAR centres aligned with the
+/// ellipses' circle centres under every pairing (up to 7 holes), the best few kept. A
+/// symmetric layout fits several pairings equally; the views together tell them apart.
+std::vector<Eigen::Isometry3d> view_pairing_starts(const ViewHoles& v, const core::PinholeCamera& camera) {
+  const std::size_t n = v.centers.size();
+  if (n < 3 || v.ellipses.size() < n || v.ellipses.size() > 7) return {};
+  std::vector<Eigen::Vector3d> circle_centers;
+  for (const auto& e : v.ellipses) circle_centers.push_back(circle_from_ellipse(e, v.radius_m, camera).center);
+  std::vector<std::size_t> perm(v.ellipses.size());
+  std::iota(perm.begin(), perm.end(), std::size_t{0});
+  std::vector<std::pair<double, Eigen::Isometry3d>> fits;
+  std::vector<Eigen::Vector3d> b(n);
+  do {
+    for (std::size_t k = 0; k < n; ++k) b[k] = circle_centers[perm[k]];
+    const Eigen::Isometry3d T = align_rigid(v.centers, b);
+    double sum2 = 0.0;
+    for (std::size_t k = 0; k < n; ++k) sum2 += (T * v.centers[k] - b[k]).squaredNorm();
+    fits.emplace_back(sum2, T);
+  } while (std::next_permutation(perm.begin(), perm.end()));
+  std::sort(fits.begin(), fits.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<Eigen::Isometry3d> starts;
+  for (std::size_t i = 0; i < std::min<std::size_t>(fits.size(), 4); ++i) starts.push_back(fits[i].second);
+  return starts;
+}
+
+}  // namespace
+
+InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& views,
+                                             const core::PinholeCamera& camera) {
+  InitialGuessResult out;
+  // Each view's valid holes, in each detector's own order: the pairing is found below.
+  std::vector<ViewHoles> holes;
+  for (const auto& v : views) {
+    if (!(v.radius_m > 0.0)) continue;
+    ViewHoles h;
+    h.radius_m = v.radius_m;
+    for (std::size_t k = 0; k < std::min(v.lidar_centers.size(), v.lidar_normals.size()); ++k) {
+      if (v.lidar_centers[k].allFinite() && v.lidar_normals[k].allFinite() && v.lidar_normals[k].norm() > 0.0) {
+        h.centers.push_back(v.lidar_centers[k]);
+        h.normals.push_back(v.lidar_normals[k].normalized());
+      }
+    }
+    for (const auto& e : v.image_ellipses)
+      if (e.size.width > 1.0f && e.size.height > 1.0f) h.ellipses.push_back(e);
+    if (!h.centers.empty() && !h.ellipses.empty()) holes.push_back(std::move(h));
+  }
+  const Pairing by_index = index_pairing(holes);
+  out.num_correspondences = static_cast<int>(correspondences(holes, by_index).size());
+  if (out.num_correspondences < 2) {
+    out.message = "needs at least 2 holes with a LIDAR centre, normal and image ellipse (got " +
+                  std::to_string(out.num_correspondences) + "); a single circle leaves the rotation about "
+                  "its normal unobservable";
+    return out;
   }
 
-  double best_rms = std::numeric_limits<double>::infinity();
-  for (const auto& [T, how] : candidates) {
-    const double rms = center_reprojection_rms(cs, camera, T);
-    if (rms < best_rms) {
-      best_rms = rms;
-      out.T_camera_lidar = T;
-      out.message = how;
+  // The LIDAR and image detectors each order a view's holes from their own viewpoint, so
+  // the pairing is part of the unknown. Start poses: the detectors' order, and each view of
+  // three or more holes aligned under its best-fitting pairings. From each start pose every
+  // view is paired by position and solved again; the pose whose hole centres reproject best
+  // under its own pairing wins.
+  std::vector<Pairing> tried;
+  struct Solution {
+    Eigen::Isometry3d T;
+    std::string how;
+    double rms_px;
+    Pairing pairing;
+  };
+  std::vector<Solution> solutions;  // the best of each distinct pairing
+  const auto evaluate = [&](const Pairing& pairing) {
+    if (std::find(tried.begin(), tried.end(), pairing) != tried.end()) return;
+    tried.push_back(pairing);
+    const std::vector<Correspondence> cs = correspondences(holes, pairing);
+    Solution best{Eigen::Isometry3d::Identity(), "", std::numeric_limits<double>::infinity(), pairing};
+    for (const auto& [T, how] : solve_pairing(cs, camera)) {
+      const double rms = center_reprojection_rms(cs, camera, T);
+      if (rms < best.rms_px) best = {T, how, rms, pairing};
     }
+    if (std::isfinite(best.rms_px)) solutions.push_back(best);
+  };
+  evaluate(by_index);
+  std::vector<Eigen::Isometry3d> starts;
+  for (const auto& s : solutions) starts.push_back(s.T);
+  for (const auto& h : holes)
+    for (const auto& T : view_pairing_starts(h, camera)) starts.push_back(T);
+  for (const auto& T : starts) {
+    if (const auto p = pairing_at(holes, camera, T)) evaluate(*p);
   }
-  if (!std::isfinite(best_rms)) {
+  // A solution's own position pairing can differ from the one it was solved with; one more
+  // round settles it.
+  for (std::size_t i = 0, n = solutions.size(); i < n; ++i) {
+    if (const auto p = pairing_at(holes, camera, solutions[i].T)) evaluate(*p);
+  }
+  if (solutions.empty()) {
     out.message = "every candidate puts a hole centre behind the camera";
     return out;
   }
+  std::sort(solutions.begin(), solutions.end(),
+            [](const Solution& x, const Solution& y) { return x.rms_px < y.rms_px; });
+  // Poses far from the best that fit nearly as well: the board's hole layout is symmetric
+  // and these views do not tell its orientations apart. Among them the detectors' own order
+  // is preferred: both detectors list the holes from their own "up", so it is the pose of
+  // a LIDAR mounted the same way up as the camera.
+  const auto rivals = [&](const Solution& a, const Solution& b) {
+    return core::rotation_error_rad(a.T, b.T) > kAmbiguousRotationRad &&
+           std::max(a.rms_px, b.rms_px) < kAmbiguousRmsFactor * std::min(a.rms_px, b.rms_px) + kAmbiguousRmsPx;
+  };
+  std::size_t chosen = 0;
+  for (std::size_t i = 1; i < solutions.size(); ++i) {
+    if (solutions[i].pairing == by_index && rivals(solutions[i], solutions[0])) chosen = i;
+  }
+  const Solution best = solutions[chosen];
+  for (std::size_t i = 0; i < solutions.size(); ++i) {
+    const Solution& s = solutions[i];
+    if (i == chosen || !rivals(s, best)) continue;
+    out.ambiguous = true;
+    std::ostringstream os;
+    os.precision(3);
+    os << "a pose " << core::rotation_error_rad(s.T, best.T) * 180.0 / M_PI
+       << " deg away pairs the holes otherwise and fits about as well (" << s.rms_px << " px against "
+       << best.rms_px << " px): the board's hole layout is symmetric from these views";
+    if (best.pairing == by_index) os << "; the pose taken assumes the LIDAR is mounted the same way up as the camera";
+    out.ambiguity = os.str();
+    break;
+  }
+  out.T_camera_lidar = best.T;
   double sum2 = 0.0;
-  for (size_t i = 0; i < cs.size(); ++i) sum2 += (out.T_camera_lidar * a[i] - b[i]).squaredNorm();
-  out.rms_center_m = std::sqrt(sum2 / cs.size());
+  const std::vector<Correspondence> cs = correspondences(holes, best.pairing);
+  for (const auto& c : cs) sum2 += (best.T * c.center_lidar - circle_from_ellipse(c.ellipse, c.radius_m, camera).center).squaredNorm();
+  out.rms_center_m = std::sqrt(sum2 / static_cast<double>(cs.size()));
+  out.num_correspondences = static_cast<int>(cs.size());
   std::ostringstream os;
   os.precision(3);
-  os << out.message << ", centre reprojection RMS " << best_rms << " px";
+  os << best.how << ", centre reprojection RMS " << best.rms_px << " px";
+  if (solutions.size() > 1) os << " (best of " << solutions.size() << " hole pairings)";
   out.message = os.str();
   out.ok = true;
   return out;

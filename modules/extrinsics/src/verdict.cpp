@@ -414,6 +414,9 @@ CalibrationVerdict judge_calibration(const std::vector<TargetView>& views, const
   for (const auto& reason : f.reasons) plausible = plausible && reason.level != VerdictLevel::kFail;
   if (plausible) check_agreement(views, camera, result, options, v, f);
   if (finite) check_observability(views, result, options, v, f);
+  if (!result.initial_guess_ambiguity.empty())
+    f.add(VerdictLevel::kWarn, "the start pose is ambiguous: " + result.initial_guess_ambiguity +
+                                   "; a view at another board pose, or a rough guess, decides it");
   std::stable_sort(f.reasons.begin(), f.reasons.end(),
                    [](const VerdictReason& a, const VerdictReason& b) { return a.level > b.level; });
   v.reasons = std::move(f.reasons);

@@ -9,6 +9,48 @@ namespace {
 
 constexpr double kDeg = M_PI / 180.0;
 
+/// Views of a board with four holes (0.5 x 0.4 m apart, r 0.12 m) at the given placements,
+/// the LIDAR holes listed row by row from the board's top-left; the image ellipses in the
+/// order `ellipse_order[view]` gives (the image detector's own order), from the true pose.
+std::vector<TargetView> four_hole_views(const core::PinholeCamera& camera, const Eigen::Isometry3d& truth,
+                                        const std::vector<testing::Placement>& placements,
+                                        const std::vector<std::vector<int>>& ellipse_order) {
+  std::vector<TargetView> views;
+  for (std::size_t i = 0; i < placements.size(); ++i) {
+    const testing::Placement& pl = placements[i];
+    const Eigen::Vector3d facing = -pl.center_lidar.normalized();
+    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(pl.yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
+                                  Eigen::AngleAxisd(pl.pitch_deg * kDeg, Eigen::Vector3d::UnitY()))
+                                     .toRotationMatrix();
+    const Eigen::Vector3d normal = (tilt * facing).normalized();
+    const Eigen::Vector3d e1 = normal.cross(Eigen::Vector3d::UnitZ()).normalized();
+    const Eigen::Vector3d e2 = normal.cross(e1);
+    TargetView v;
+    v.name = "view " + std::to_string(i);
+    v.radius_m = 0.12;
+    v.image_width = camera.width();
+    v.image_height = camera.height();
+    std::vector<cv::RotatedRect> ellipses;
+    for (const double dy : {0.2, -0.2}) {
+      for (const double dx : {-0.25, 0.25}) {
+        const Eigen::Vector3d c = pl.center_lidar + dx * e1 - dy * e2;
+        std::vector<cv::Point2f> px;
+        for (int k = 0; k < 360; ++k) {
+          const Eigen::Vector3d p = c + v.radius_m * (std::cos(k * kDeg) * e1 + std::sin(k * kDeg) * e2);
+          Eigen::Vector2d uv;
+          if (camera.project(truth * p, &uv)) px.emplace_back(static_cast<float>(uv.x()), static_cast<float>(uv.y()));
+        }
+        v.lidar_centers.push_back(c);
+        v.lidar_normals.push_back(normal);
+        ellipses.push_back(cv::fitEllipse(px));
+      }
+    }
+    for (const int k : ellipse_order[i]) v.image_ellipses.push_back(ellipses[static_cast<std::size_t>(k)]);
+    views.push_back(std::move(v));
+  }
+  return views;
+}
+
 TEST(InitialGuess, AlignRigidRecoversAKnownTransform) {
   const Eigen::Isometry3d T = core::make_transform(core::rotation_from_rpy(0.3, -0.2, 1.1),
                                                    Eigen::Vector3d(0.5, -1.0, 2.0));
@@ -82,6 +124,42 @@ TEST(InitialGuess, OneCircleIsNotEnoughAndSaysWhy) {
   const InitialGuessResult g = closed_form_initial_guess(views, camera);
   EXPECT_FALSE(g.ok);
   EXPECT_NE(g.message.find("at least 2 holes"), std::string::npos) << g.message;
+}
+
+// The image detector lists a view's holes in another order than the LIDAR detector (as for
+// a LIDAR mounted rolled against the camera): pairing hole k with ellipse k put the start
+// pose tens of degrees off. The pairing is found, and three views leave no doubt.
+TEST(InitialGuess, HolesListedInAnotherOrderInTheImageArePairedByTheSearch) {
+  const core::PinholeCamera camera(testing::table1_intrinsics());
+  const Eigen::Isometry3d truth = testing::true_T_camera_lidar();
+  auto placements = testing::table1_placements();
+  placements.resize(3);
+  const auto views = four_hole_views(camera, truth, placements, {{3, 2, 1, 0}, {1, 3, 0, 2}, {2, 0, 3, 1}});
+  const InitialGuessResult g = closed_form_initial_guess(views, camera);
+  ASSERT_TRUE(g.ok) << g.message;
+  EXPECT_EQ(g.num_correspondences, 12);
+  EXPECT_LT(core::rotation_error_rad(g.T_camera_lidar, truth), 2.0 * kDeg) << g.message;
+  EXPECT_LT(core::translation_error_m(g.T_camera_lidar, truth), 0.10) << g.message;
+  EXPECT_FALSE(g.ambiguous) << g.ambiguity;
+}
+
+// One view of the symmetric four-hole board: the true pose and the one turned 180 degrees
+// about the board's normal fit alike. The guess says so and takes the detectors' order.
+TEST(InitialGuess, OneViewOfASymmetricBoardIsReportedAmbiguous) {
+  const core::PinholeCamera camera(testing::table1_intrinsics());
+  const Eigen::Isometry3d truth = testing::true_T_camera_lidar();
+  auto placements = testing::table1_placements();
+  placements.resize(1);
+  const InitialGuessResult same_order = closed_form_initial_guess(four_hole_views(camera, truth, placements, {{0, 1, 2, 3}}), camera);
+  ASSERT_TRUE(same_order.ok) << same_order.message;
+  EXPECT_TRUE(same_order.ambiguous);
+  EXPECT_NE(same_order.ambiguity.find("symmetric"), std::string::npos) << same_order.ambiguity;
+  EXPECT_LT(core::rotation_error_rad(same_order.T_camera_lidar, truth), 2.0 * kDeg) << same_order.message;
+  // Listed the other way round, the detectors' order is the turned pose: still reported.
+  const InitialGuessResult reversed = closed_form_initial_guess(four_hole_views(camera, truth, placements, {{3, 2, 1, 0}}), camera);
+  ASSERT_TRUE(reversed.ok) << reversed.message;
+  EXPECT_TRUE(reversed.ambiguous);
+  EXPECT_GT(core::rotation_error_rad(reversed.T_camera_lidar, truth), 150.0 * kDeg) << reversed.message;
 }
 
 }  // namespace

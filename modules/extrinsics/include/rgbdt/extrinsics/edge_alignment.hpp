@@ -97,6 +97,9 @@ struct EdgeAlignmentResult {
   Eigen::Isometry3d T_camera_lidar = Eigen::Isometry3d::Identity();  ///< LIDAR -> camera
   Eigen::Isometry3d T_camera_lidar_initial = Eigen::Isometry3d::Identity();  ///< start
   bool initial_from_closed_form = false;  ///< true when no guess was given
+  /// Set when the closed-form start had a rival pose far from it that fits about as well (a
+  /// symmetric hole layout seen from too few poses): what the rival is and what was assumed.
+  std::string initial_guess_ambiguity;
   core::Matrix6d covariance = core::Matrix6d::Zero();  ///< [rx ry rz tx ty tz], rad^2, m^2
   bool covariance_valid = false;  ///< computed and full rank (every parameter observable)
   /// The terms `covariance` (== covariance_terms.total) is made of; .jacobian is the

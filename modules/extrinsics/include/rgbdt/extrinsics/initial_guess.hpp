@@ -35,6 +35,10 @@ struct InitialGuessResult {
   double rms_center_m = 0.0;  ///< RMS distance of the aligned centres [m]
   int num_correspondences = 0;
   std::string message;        ///< method used, or why it failed
+  /// Another pose, far from this one, pairs the holes otherwise and fits nearly as well (a
+  /// symmetric hole layout seen from too few poses); `ambiguity` says how far and how well.
+  bool ambiguous = false;
+  std::string ambiguity;
 };
 
 /// Rigid alignment of point and direction correspondences (Kabsch/Umeyama without scale):
@@ -47,7 +51,10 @@ Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
                               double direction_weight_m2 = 1.0);
 
 /// Closed-form T_camera_lidar from the per-hole data of the views (lidar_centers,
-/// lidar_normals, image_ellipses). Views without that data are skipped.
+/// lidar_normals, image_ellipses). Views without that data are skipped. The LIDAR holes and
+/// the image ellipses of a view may be listed in different orders: the pairing is searched
+/// (the detectors' order, and every pairing of each view of 3-7 holes as a start pose, each
+/// view then paired by position) and the pose whose centres reproject best is returned.
 InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& views,
                                              const core::PinholeCamera& camera);
 
