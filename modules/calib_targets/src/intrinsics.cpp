@@ -372,7 +372,17 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
   // on a 1000 px copy of an RGB board image it still runs 4-10 s per variant).
   std::vector<std::pair<const Variant*, int>> attempts;
   for (const Variant& v : variants) attempts.emplace_back(&v, 0);
-  if (pattern.type == PatternType::kCheckerboard) {
+  // cv::checkChessboard (the quick test behind CALIB_CB_FAST_CHECK: a few ms to 0.25 s per
+  // variant) decides whether the search is worth it. Where no variant passes it, only the
+  // first attempt runs. Measured (shared data: czha626 raw and masked, 94 real thermal
+  // images; 60 simulated thermal and 20 RGB board images): every image whose board the
+  // search finds passes on at least one variant; the 20 simulated night images, whose board
+  // no attempt finds, and uniform noise pass on none. A 640x512 image without the pattern
+  // then ends after about 1 s instead of 11.6 s.
+  bool plausible = pattern.type != PatternType::kCheckerboard;
+  for (const Variant& v : variants) plausible = plausible || cv::checkChessboard(v.img, size);
+  if (!plausible) attempts.resize(1);
+  if (plausible && pattern.type == PatternType::kCheckerboard) {
     for (const Variant& v : variants) attempts.emplace_back(&v, 3);
     attempts.emplace_back(&variants[0], 1);
     for (const Variant& v : variants)
@@ -463,7 +473,10 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
     return det;
   }
   det.reason = "pattern " + std::to_string(pattern.cols) + "x" + std::to_string(pattern.rows) + " " +
-               to_string(pattern.type) + " not found in either polarity";
+               to_string(pattern.type) +
+               (plausible ? " not found in either polarity"
+                          : " not found: no image variant looks like a checkerboard (cv::checkChessboard), and "
+                            "findChessboardCornersSB on the normalised image found none");
   if (!rejected.empty()) det.reason += " (rejected " + rejected + ")";
   return det;
 }

@@ -164,7 +164,15 @@ TEST(Intrinsics, NoPatternInALargeImageIsNotFound) {
   const auto d = rgbdt::calib_targets::detect_pattern(noise, pattern);
   EXPECT_FALSE(d.ok) << d.method;
   EXPECT_NE(d.reason.find("not found"), std::string::npos) << d.reason;
+  // A thermal-sized one would get the 2x upscaled attempts (11.6 s); the quick checkerboard
+  // test rules every variant out, so only the first attempt runs, and the reason says so.
+  cv::Mat small(512, 640, CV_8U);
+  rng.fill(small, cv::RNG::UNIFORM, 0, 256);
+  const auto s = rgbdt::calib_targets::detect_pattern(small, pattern);
+  EXPECT_FALSE(s.ok) << s.method;
+  EXPECT_NE(s.reason.find("no image variant looks like a checkerboard"), std::string::npos) << s.reason;
 }
+
 
 TEST(Intrinsics, BadViewsAreRejectedWithReasons) {
   auto views = render_views(5, 7u);  // 5 good views

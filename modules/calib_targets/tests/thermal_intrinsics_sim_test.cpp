@@ -74,6 +74,35 @@ TEST(ThermalIntrinsicsSim, FortyViewsMeetIssueTargets) {
 // The RGB camera's simulated board images (1288x964) are found, each corner within a pixel
 // of the truth: the search runs on a downscaled copy and the corners are refined at full
 // resolution.
+// Night thermal images of the board (almost no contrast between the squares): no detector
+// finds it (all attempts: 10.7 s an image), and the quick checkerboard test rules each out
+// before the long attempts, saying so.
+TEST(ThermalIntrinsicsSim, NightBoardsWithoutContrastAreRuledOutByTheQuickTest) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "calib_targets_thermal_night";
+  fs::remove_all(dir);
+  rgbdt::sim::CheckerboardSessionOptions opt;
+  opt.camera = "thermal";
+  opt.views = 3;
+  opt.seed = 4;
+  opt.time_of_day = rgbdt::sim::TimeOfDay::kNight;
+  const auto truth = rgbdt::sim::write_checkerboard_session(dir.string(), opt);
+  ASSERT_EQ(truth.views.size(), 3u);
+  ct::PatternSpec pattern;
+  pattern.cols = opt.squares_x - 1;
+  pattern.rows = opt.squares_y - 1;
+  pattern.spacing_m = opt.square_m;
+  for (std::size_t v = 0; v < truth.views.size(); ++v) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "thermal/%03zu.png", v);
+    const cv::Mat image = cv::imread((dir / name).string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(image.empty()) << name;
+    const ct::PatternDetection d = ct::detect_pattern(image, pattern);
+    EXPECT_FALSE(d.ok) << name << ": " << d.method;
+    EXPECT_NE(d.reason.find("no image variant looks like a checkerboard"), std::string::npos) << name << ": " << d.reason;
+  }
+  fs::remove_all(dir);
+}
+
 TEST(RgbIntrinsicsSim, SimulatedRgbBoardIsFoundAtFullResolution) {
   const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "calib_targets_rgb_board";
   fs::remove_all(dir);
