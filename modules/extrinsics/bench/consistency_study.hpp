@@ -1,14 +1,13 @@
 #pragma once
-// The covariance consistency study (issue #29 item 4), shared by the bench
-// calib_consistency (the full study) and consistency_study_test (a smaller one): simulated
+// The covariance consistency study of the bench calib_consistency: simulated
 // calibration sessions (rgbdt::sim) run through the detectors (rgbdt::calib_targets) and
 // align_edges as rgbdt_calibrate runs them, and each solution's true 6-DoF error scored
 // against its reported covariance (NEES, inside the 95 % ellipsoid).
 //
 // The LIDAR is an axis of the study (LidarKind): the tilting 2D LIDAR with its ring field,
-// and the same clouds with the ring field ignored (the detector recovers the scan lines or
-// uses the board's occupancy). Further kinds (spinning multi-ring, dense non-repetitive)
-// are new enumerators, a branch in make_session() and an entry in kAllLidarKinds.
+// the same clouds with the ring field ignored (the detector recovers the scan lines or
+// uses the board's occupancy), a spinning 16-ring LIDAR and a dense cloud without rings.
+// A further kind is an enumerator, an entry in kAllLidarKinds and one in sim_lidar().
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -32,11 +31,30 @@
 namespace rgbdt::extrinsics::study {
 
 enum class LidarKind {
-  kTiltRing,    ///< tilting 2D LIDAR, ring field = scan index
-  kTiltNoRing,  ///< the same clouds, ring field ignored
+  kTiltRing,     ///< tilting 2D LIDAR, ring field = scan index
+  kTiltNoRing,   ///< the same clouds, ring field ignored
+  kSpinning16,   ///< spinning 16-ring LIDAR (VLP-16 like), with its ring field
+  kDense,        ///< dense non-repetitive cloud without rings (Livox like)
 };
-inline constexpr LidarKind kAllLidarKinds[] = {LidarKind::kTiltRing, LidarKind::kTiltNoRing};
-inline const char* to_string(LidarKind k) { return k == LidarKind::kTiltRing ? "tilt-ring" : "tilt-noring"; }
+inline constexpr LidarKind kAllLidarKinds[] = {LidarKind::kTiltRing, LidarKind::kTiltNoRing, LidarKind::kSpinning16,
+                                               LidarKind::kDense};
+inline const char* to_string(LidarKind k) {
+  switch (k) {
+    case LidarKind::kTiltRing: return "tilt-ring";
+    case LidarKind::kTiltNoRing: return "tilt-noring";
+    case LidarKind::kSpinning16: return "spinning16";
+    case LidarKind::kDense: return "dense";
+  }
+  return "?";
+}
+/// The simulator's LIDAR for a study kind.
+inline sim::LidarKind sim_lidar(LidarKind k) {
+  switch (k) {
+    case LidarKind::kSpinning16: return sim::LidarKind::kSpinning16;
+    case LidarKind::kDense: return sim::LidarKind::kDense;
+    default: return sim::LidarKind::kTilt;
+  }
+}
 
 /// chi-square quantile, 6 degrees of freedom, 0.95: the 95 % ellipsoid is NEES <= this.
 inline constexpr double kChi2_6_95 = 12.591587243743977;
@@ -136,6 +154,7 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) 
   opt.seed = c.seed;
   opt.noise_scale = c.noise_scale;
   opt.holes = c.holes;
+  opt.lidar = sim_lidar(c.kind);
   const sim::CalibrationSessionResult sim_result = sim::write_calibration_session(dir.string(), opt);
   const Eigen::Isometry3d truth = opt.rig.T_rgb_lidar;
   const core::CalibrationSession session = core::read_calibration_session(dir.string());
@@ -146,7 +165,7 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) 
   for (std::size_t i = 0; i < session.views.size(); ++i) {
     const auto& sv = session.views[i];
     const cloud::LoadedCloud loaded = cloud::load_pcd(sv.cloud);
-    const bool has_ring = c.kind == LidarKind::kTiltRing && loaded.has_ring;
+    const bool has_ring = c.kind != LidarKind::kTiltNoRing && loaded.has_ring;
     const auto lidar = calib_targets::detect_target_in_cloud(*loaded.cloud, has_ring, session.target);
     const cv::Mat image = cv::imread(sv.images.at("rgb"), cv::IMREAD_UNCHANGED);
     const auto det = calib_targets::detect_target_in_image(image, session.target, camera);
