@@ -356,16 +356,18 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
   std::sort(solutions.begin(), solutions.end(),
             [](const Solution& x, const Solution& y) { return x.rms_px < y.rms_px; });
   // Poses far from the best that fit nearly as well: the board's hole layout is symmetric
-  // and these views do not tell its orientations apart. Among them the detectors' own order
-  // is preferred: both detectors list the holes from their own "up", so it is the pose of
-  // a LIDAR mounted the same way up as the camera.
+  // and these views do not tell its orientations apart. Among them the one that mounts the
+  // LIDAR the same way up as the camera is taken: the LIDAR's +z (up, REP 103) closest to
+  // the camera's up (-y of its optical frame). The detectors' hole order is no help here: a
+  // board rolled ~45 deg in the view makes "top-left" differ between them.
   const auto rivals = [&](const Solution& a, const Solution& b) {
     return core::rotation_error_rad(a.T, b.T) > kAmbiguousRotationRad &&
            std::max(a.rms_px, b.rms_px) < kAmbiguousRmsFactor * std::min(a.rms_px, b.rms_px) + kAmbiguousRmsPx;
   };
+  const auto upright = [](const Solution& s) { return -(s.T.linear() * Eigen::Vector3d::UnitZ()).y(); };
   std::size_t chosen = 0;
   for (std::size_t i = 1; i < solutions.size(); ++i) {
-    if (solutions[i].pairing == by_index && rivals(solutions[i], solutions[0])) chosen = i;
+    if (rivals(solutions[i], solutions[0]) && upright(solutions[i]) > upright(solutions[chosen])) chosen = i;
   }
   const Solution best = solutions[chosen];
   for (std::size_t i = 0; i < solutions.size(); ++i) {
@@ -377,7 +379,8 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
     os << "a pose " << core::rotation_error_rad(s.T, best.T) * 180.0 / M_PI
        << " deg away pairs the holes otherwise and fits about as well (" << s.rms_px << " px against "
        << best.rms_px << " px): the board's hole layout is symmetric from these views";
-    if (best.pairing == by_index) os << "; the pose taken assumes the LIDAR is mounted the same way up as the camera";
+    os << "; the pose taken assumes the LIDAR is mounted the same way up as the camera (its +z towards the "
+          "image's top)";
     out.ambiguity = os.str();
     break;
   }

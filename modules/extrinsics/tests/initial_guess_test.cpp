@@ -144,22 +144,29 @@ TEST(InitialGuess, HolesListedInAnotherOrderInTheImageArePairedByTheSearch) {
 }
 
 // One view of the symmetric four-hole board: the true pose and the one turned 180 degrees
-// about the board's normal fit alike. The guess says so and takes the detectors' order.
+// about the board's normal fit alike, whatever order the image detector lists the holes in.
+// The guess says so and takes the pose with the LIDAR the same way up as the camera.
 TEST(InitialGuess, OneViewOfASymmetricBoardIsReportedAmbiguous) {
   const core::PinholeCamera camera(testing::table1_intrinsics());
   const Eigen::Isometry3d truth = testing::true_T_camera_lidar();
   auto placements = testing::table1_placements();
   placements.resize(1);
-  const InitialGuessResult same_order = closed_form_initial_guess(four_hole_views(camera, truth, placements, {{0, 1, 2, 3}}), camera);
-  ASSERT_TRUE(same_order.ok) << same_order.message;
-  EXPECT_TRUE(same_order.ambiguous);
-  EXPECT_NE(same_order.ambiguity.find("symmetric"), std::string::npos) << same_order.ambiguity;
-  EXPECT_LT(core::rotation_error_rad(same_order.T_camera_lidar, truth), 2.0 * kDeg) << same_order.message;
-  // Listed the other way round, the detectors' order is the turned pose: still reported.
-  const InitialGuessResult reversed = closed_form_initial_guess(four_hole_views(camera, truth, placements, {{3, 2, 1, 0}}), camera);
-  ASSERT_TRUE(reversed.ok) << reversed.message;
-  EXPECT_TRUE(reversed.ambiguous);
-  EXPECT_GT(core::rotation_error_rad(reversed.T_camera_lidar, truth), 150.0 * kDeg) << reversed.message;
+  for (const std::vector<int>& order : {std::vector<int>{0, 1, 2, 3}, std::vector<int>{3, 2, 1, 0}}) {
+    const InitialGuessResult g = closed_form_initial_guess(four_hole_views(camera, truth, placements, {order}), camera);
+    ASSERT_TRUE(g.ok) << g.message;
+    EXPECT_TRUE(g.ambiguous) << order[0];
+    EXPECT_NE(g.ambiguity.find("symmetric"), std::string::npos) << g.ambiguity;
+    EXPECT_LT(core::rotation_error_rad(g.T_camera_lidar, truth), 2.0 * kDeg) << g.message;
+  }
+  // The same rig with the LIDAR mounted upside down (rolled 180 deg about its x axis): the
+  // assumption is wrong, the pose is the turned one, and the ambiguity is still reported.
+  const Eigen::Isometry3d rolled = truth * Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX());
+  std::vector<testing::Placement> rolled_placements = placements;
+  for (auto& pl : rolled_placements) pl.center_lidar = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()) * pl.center_lidar;
+  const InitialGuessResult g = closed_form_initial_guess(four_hole_views(camera, rolled, rolled_placements, {{0, 1, 2, 3}}), camera);
+  ASSERT_TRUE(g.ok) << g.message;
+  EXPECT_TRUE(g.ambiguous);
+  EXPECT_GT(core::rotation_error_rad(g.T_camera_lidar, rolled), 150.0 * kDeg) << g.message;
 }
 
 }  // namespace
