@@ -15,6 +15,17 @@
 namespace ct = rgbdt::calib_targets;
 namespace fs = std::filesystem;
 
+namespace {
+/// The simulated board's inner-corner checkerboard.
+ct::PatternSpec inner_corners(const rgbdt::sim::CheckerboardSessionOptions& opt) {
+  ct::PatternSpec pattern;
+  pattern.cols = opt.squares_x - 1;
+  pattern.rows = opt.squares_y - 1;
+  pattern.spacing_m = opt.square_m;
+  return pattern;
+}
+}  // namespace
+
 TEST(ThermalIntrinsicsSim, FortyViewsMeetIssueTargets) {
   const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "calib_targets_thermal_intrinsics";
   fs::remove_all(dir);
@@ -87,12 +98,9 @@ TEST(ThermalIntrinsicsSim, NightBoardsWithoutContrastAreRuledOutByTheQuickTest) 
   opt.time_of_day = rgbdt::sim::TimeOfDay::kNight;
   const auto truth = rgbdt::sim::write_checkerboard_session(dir.string(), opt);
   ASSERT_EQ(truth.views.size(), 3u);
-  ct::PatternSpec pattern;
-  pattern.cols = opt.squares_x - 1;
-  pattern.rows = opt.squares_y - 1;
-  pattern.spacing_m = opt.square_m;
+  const ct::PatternSpec pattern = inner_corners(opt);
   for (std::size_t v = 0; v < truth.views.size(); ++v) {
-    char name[32];
+    char name[48];
     std::snprintf(name, sizeof(name), "thermal/%03zu.png", v);
     const cv::Mat image = cv::imread((dir / name).string(), cv::IMREAD_UNCHANGED);
     ASSERT_FALSE(image.empty()) << name;
@@ -112,10 +120,7 @@ TEST(RgbIntrinsicsSim, SimulatedRgbBoardIsFoundAtFullResolution) {
   opt.seed = 1;
   const auto truth = rgbdt::sim::write_checkerboard_session(dir.string(), opt);
   ASSERT_EQ(truth.views.size(), 4u);
-  ct::PatternSpec pattern;
-  pattern.cols = opt.squares_x - 1;
-  pattern.rows = opt.squares_y - 1;
-  pattern.spacing_m = opt.square_m;
+  const ct::PatternSpec pattern = inner_corners(opt);
   for (std::size_t v = 0; v < truth.views.size(); ++v) {
     char name[32];
     std::snprintf(name, sizeof(name), "rgb/%03zu.png", v);

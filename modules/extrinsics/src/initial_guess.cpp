@@ -172,8 +172,9 @@ std::optional<Pairing> pairing_at(const std::vector<ViewHoles>& views, const cor
                                   const Eigen::Isometry3d& T) {
   Pairing p(views.size());
   for (std::size_t v = 0; v < views.size(); ++v) {
-    if (views[v].centers.size() > views[v].ellipses.size()) {
-      p[v] = index_pairing({views[v]})[0];
+    if (views[v].centers.size() > views[v].ellipses.size()) {  // as many as pair, in order
+      p[v].resize(views[v].ellipses.size());
+      std::iota(p[v].begin(), p[v].end(), std::size_t{0});
       continue;
     }
     std::vector<Eigen::Vector2d> px(views[v].centers.size());

@@ -18,13 +18,7 @@ std::vector<TargetView> four_hole_views(const core::PinholeCamera& camera, const
   std::vector<TargetView> views;
   for (std::size_t i = 0; i < placements.size(); ++i) {
     const testing::Placement& pl = placements[i];
-    const Eigen::Vector3d facing = -pl.center_lidar.normalized();
-    const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(pl.yaw_deg * kDeg, Eigen::Vector3d::UnitZ()) *
-                                  Eigen::AngleAxisd(pl.pitch_deg * kDeg, Eigen::Vector3d::UnitY()))
-                                     .toRotationMatrix();
-    const Eigen::Vector3d normal = (tilt * facing).normalized();
-    const Eigen::Vector3d e1 = normal.cross(Eigen::Vector3d::UnitZ()).normalized();
-    const Eigen::Vector3d e2 = normal.cross(e1);
+    const auto [normal, e1, e2] = testing::board_axes(pl);
     TargetView v;
     v.name = "view " + std::to_string(i);
     v.radius_m = 0.12;

@@ -2,6 +2,7 @@
 // Synthetic circle-target views for the tests and the benchmark: the protocol of paper
 // Sec. 4.2 (circles at different poses, a camera with known intrinsics and extrinsics, the
 // circles projected to make the image edges).
+#include <array>
 #include <Eigen/Geometry>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
@@ -50,6 +51,18 @@ inline std::vector<Placement> table1_placements() {
           {{6.0, 1.3, 0.1}, 20, 20},   {{3.2, -0.1, -0.1}, -35, -25}};
 }
 
+/// The board's unit normal (towards the LIDAR, then tilted by the placement) and two in-plane
+/// axes: e1 horizontal, e2 = normal x e1.
+inline std::array<Eigen::Vector3d, 3> board_axes(const Placement& pl) {
+  const Eigen::Vector3d facing = -pl.center_lidar.normalized();
+  const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(pl.yaw_deg * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                                Eigen::AngleAxisd(pl.pitch_deg * M_PI / 180, Eigen::Vector3d::UnitY()))
+                                   .toRotationMatrix();
+  const Eigen::Vector3d normal = (tilt * facing).normalized();
+  const Eigen::Vector3d e1 = normal.cross(Eigen::Vector3d::UnitZ()).normalized();
+  return {normal, e1, normal.cross(e1)};
+}
+
 /// One view per placement: 360 circle points (1 degree steps) and, as image edges, their
 /// projections with the true extrinsics (noiseless, as in the paper's test).
 inline std::vector<TargetView> make_views(const core::PinholeCamera& camera,
@@ -59,15 +72,7 @@ inline std::vector<TargetView> make_views(const core::PinholeCamera& camera,
   std::vector<TargetView> views;
   for (size_t i = 0; i < placements.size(); ++i) {
     const Placement& pl = placements[i];
-    // Board normal towards the LIDAR, then tilted.
-    const Eigen::Vector3d facing = -pl.center_lidar.normalized();
-    const Eigen::Matrix3d tilt =
-        (Eigen::AngleAxisd(pl.yaw_deg * M_PI / 180, Eigen::Vector3d::UnitZ()) *
-         Eigen::AngleAxisd(pl.pitch_deg * M_PI / 180, Eigen::Vector3d::UnitY()))
-            .toRotationMatrix();
-    const Eigen::Vector3d normal = (tilt * facing).normalized();
-    const Eigen::Vector3d e1 = normal.cross(Eigen::Vector3d::UnitZ()).normalized();
-    const Eigen::Vector3d e2 = normal.cross(e1);
+    const auto [normal, e1, e2] = board_axes(pl);
     TargetView v;
     v.name = "view " + std::to_string(i);
     v.radius_m = radius_m;
