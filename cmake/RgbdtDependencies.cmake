@@ -1,5 +1,7 @@
 # Every third-party dependency is found here, once, from Debian's packages
-# (scripts/install-deps installs them). Modules link the imported targets.
+# (scripts/install-deps installs them). Modules link the imported targets; the
+# rgbdt_find_for() table at the end says how an installed rgbdt finds each of them again,
+# so rgbdtConfig.cmake asks for what a component's link interface names and nothing else.
 find_package(Threads REQUIRED)
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(yaml-cpp REQUIRED)
@@ -36,3 +38,35 @@ if(NOT TARGET rgbdt_pcl)
   target_link_libraries(rgbdt_pcl INTERFACE pcl_common pcl_io pcl_search pcl_kdtree
     pcl_sample_consensus pcl_segmentation pcl_filters pcl_features pcl_registration)
 endif()
+
+# rgbdt_find_for(TARGETS <imported targets...> FIND <lines...>): the lines rgbdtConfig.cmake
+# runs for a component whose link interface names one of these targets. A module that
+# links an imported target missing from this table stops the configure (see
+# rgbdt_install_package), so the installed package cannot fall behind the modules.
+function(rgbdt_find_for)
+  cmake_parse_arguments(ARG "" "" "TARGETS;FIND" ${ARGN})
+  foreach(t IN LISTS ARG_TARGETS)
+    set_property(GLOBAL PROPERTY "RGBDT_FIND_FOR_${t}" "${ARG_FIND}")
+  endforeach()
+endfunction()
+
+rgbdt_find_for(TARGETS Threads::Threads FIND "find_dependency(Threads)")
+rgbdt_find_for(TARGETS Eigen3::Eigen FIND "find_dependency(Eigen3 NO_MODULE)")
+rgbdt_find_for(TARGETS yaml-cpp FIND "find_dependency(yaml-cpp)")
+rgbdt_find_for(TARGETS ${OpenCV_LIBS} opencv_core opencv_imgproc opencv_imgcodecs opencv_calib3d opencv_features2d
+  FIND "find_dependency(OpenCV)")
+rgbdt_find_for(TARGETS Ceres::ceres FIND "find_dependency(Ceres)")
+rgbdt_find_for(TARGETS nanoflann::nanoflann FIND "find_dependency(nanoflann)")
+rgbdt_find_for(TARGETS rgbdt_pcl FIND
+  "find_package(MPI QUIET COMPONENTS C)"
+  "find_dependency(PCL COMPONENTS common io search kdtree sample_consensus segmentation filters features registration)"
+  "if(NOT TARGET rgbdt_pcl)"
+  "  include(\${CMAKE_CURRENT_LIST_DIR}/rgbdt-pcl-targets.cmake)"
+  "endif()")
+foreach(part IN ITEMS obs hwdrivers maps slam io serialization)
+  rgbdt_find_for(TARGETS mrpt::${part} FIND "find_dependency(mrpt-${part})")
+endforeach()
+rgbdt_find_for(TARGETS PkgConfig::ARAVIS FIND
+  "find_dependency(PkgConfig)" "pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)")
+rgbdt_find_for(TARGETS PkgConfig::LIBUSB FIND
+  "find_dependency(PkgConfig)" "pkg_check_modules(LIBUSB REQUIRED IMPORTED_TARGET libusb-1.0)")

@@ -50,7 +50,8 @@ int main() {
     views.push_back(v);
   }
   const Eigen::Isometry3d guess =
-      core::from_vector6(core::to_vector6(T_camera_lidar) + (core::Vector6d() << 0.05, -0.05, 0.03, 0.1, -0.1, 0.05).finished());
+      core::from_vector6(core::to_vector6(T_camera_lidar) +
+                         (core::Vector6d() << 0.05, -0.05, 0.03, 0.1, -0.1, 0.05).finished());
   const auto result = extrinsics::align_edges(views, camera, {}, guess);
   // And with no guess at all: the closed-form start from the same holes.
   const auto unguided = extrinsics::align_edges(views, camera);
@@ -59,7 +60,8 @@ int main() {
   std::cout << "consumer: with no guess, within " << dr0 << " deg, " << dt0 * 100 << " cm\n";
   const double dr = core::rotation_error_rad(result.T_camera_lidar, T_camera_lidar) * 180 / M_PI;
   const double dt = core::translation_error_m(result.T_camera_lidar, T_camera_lidar);
-  std::cout << "consumer: recovered T_camera_lidar within " << dr << " deg, " << dt * 100 << " cm\n";
+  std::cout << "consumer: recovered T_camera_lidar within " << dr << " deg, " << dt * 100
+            << " cm\n";
   const bool ok = result.converged && dr < 0.01 && dt < 0.001;
   const bool ok0 = unguided.converged && dr0 < 0.01 && dt0 < 0.001;
   return (ok && ok0) ? 0 : 1;
