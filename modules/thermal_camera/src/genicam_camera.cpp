@@ -121,6 +121,40 @@ bool is_ipv4_address(const std::string& id) {
   return true;
 }
 
+// True when a local IPv4 interface's subnet holds the IPv4 `address`.
+bool has_interface_for(const std::string& address) {
+  GInetAddress* device = g_inet_address_new_from_string(address.c_str());
+  if (device == nullptr) return false;
+  std::string why;
+  GInetAddress* iface = g_inet_address_get_family(device) == G_SOCKET_FAMILY_IPV4
+                            ? interface_for(device, &why)
+                            : nullptr;
+  g_object_unref(device);
+  if (iface == nullptr) return false;
+  g_object_unref(iface);
+  return true;
+}
+
+// The listed device that `id` names: by its id, its physical id (a GigE camera's MAC
+// address) or "<vendor>-<serial>", as Aravis accepts them. nullptr when none does.
+const DeviceInfo* find_listed(const std::vector<DeviceInfo>& devices, const std::string& id) {
+  for (const auto& d : devices) {
+    if (d.id == id) return &d;
+  }
+  for (const auto& d : devices) {
+    if (!d.physical_id.empty() && d.physical_id == id) return &d;
+    if (!d.serial.empty() && d.vendor + "-" + d.serial == id) return &d;
+  }
+  return nullptr;
+}
+
+std::string listed_ids(const std::vector<DeviceInfo>& devices) {
+  if (devices.empty()) return "no camera is visible on the selected interfaces";
+  std::string s = "the cameras visible on the selected interfaces are";
+  for (size_t i = 0; i < devices.size(); ++i) s += (i == 0 ? " '" : ", '") + devices[i].id + "'";
+  return s;
+}
+
 }  // namespace
 
 void select_interfaces(const InterfaceSelection& selection) {
@@ -148,6 +182,7 @@ std::vector<DeviceInfo> list_devices() {
     d.model = str_or_empty(arv_get_device_model(i));
     d.serial = str_or_empty(arv_get_device_serial_nbr(i));
     d.address = str_or_empty(arv_get_device_address(i));
+    d.physical_id = str_or_empty(arv_get_device_physical_id(i));
     devices.push_back(d);
   }
   return devices;
@@ -251,18 +286,48 @@ struct GenicamCamera::Impl {
                               (why.empty() ? take_message(error) : why));
       }
     } else {
-      camera = arv_camera_new(device_id.c_str(), &error);
-      if (camera == nullptr) {
-        throw core::Error("camera '" + device_id + "'",
-                          "cannot open: " + take_message(error) +
-                              " (run `rgbdt_camera list` to see the available ids)");
-      }
+      open_listed();
     }
     control_lost.store(false);
     control_lost_handler = g_signal_connect(arv_camera_get_device(camera), "control-lost",
                                             G_CALLBACK(&Impl::on_control_lost), this);
     connected = true;
     configure();
+  }
+
+  // Opens a camera named by id (not by address). A GigE camera is opened by the address
+  // the device list gives for it, from the local interface on that address's subnet:
+  // arv_camera_new(id) would take the interface whose discovery socket heard the camera
+  // first, and a camera that answers on another interface's socket than the one its
+  // stream reaches (arv-fake-gv-camera on 127.0.0.1 also answers the broadcast sent from
+  // the Ethernet interface) then streams to a receiver that never sees a packet (Aravis's
+  // packet socket listens on that other interface).
+  void open_listed() {
+    const std::vector<DeviceInfo> devices = list_devices();
+    const DeviceInfo* listed = find_listed(devices, device_id);
+    GError* error = nullptr;
+    std::string why;
+    if (listed != nullptr && listed->protocol == "GigEVision" && is_ipv4_address(listed->address) &&
+        has_interface_for(listed->address)) {
+      camera = open_by_address(listed->address, &error, &why);
+      if (camera == nullptr) {
+        throw core::Error("camera '" + device_id + "'",
+                          "cannot open the GigE camera listed at " + listed->address + ": " +
+                              (why.empty() ? take_message(error) : why));
+      }
+      return;
+    }
+    // USB3 Vision and fake cameras, a GigE camera on no local subnet, and the names Aravis
+    // resolves itself but does not list (a GigE camera's user-defined name, a host name).
+    camera = arv_camera_new(listed != nullptr ? listed->id.c_str() : device_id.c_str(), &error);
+    if (camera == nullptr) {
+      const std::string aravis = take_message(error);
+      if (listed != nullptr)
+        throw core::Error("camera '" + device_id + "'", "cannot open: " + aravis);
+      throw core::Error(
+          "camera '" + device_id + "'",
+          "no camera has this id; " + listed_ids(devices) + " (Aravis: " + aravis + ")");
+    }
   }
 
   void configure() {

@@ -1,8 +1,10 @@
 // GenicamCamera over the real GigE Vision network path: Aravis's arv-fake-gv-camera-0.8
-// (Debian aravis-tools) serves GVCP/GVSP on 127.0.0.1 only, so no traffic leaves the host.
-// The camera process is killed mid-stream and restarted to check that the driver reports
-// the loss and recovers. ctest runs these tests one at a time (RESOURCE_LOCK): the fake
-// camera needs UDP port 3956 on 127.0.0.1.
+// (Debian aravis-tools) serves GVCP/GVSP on 127.0.0.1 only. The camera process is killed
+// mid-stream and restarted to check that the driver reports the loss and recovers. Most
+// tests open it by address, so no traffic leaves the host; the ones that open it by the id
+// list_devices() shows (GigeDiscoveryOn) send one GigE discovery broadcast on each IPv4
+// interface. ctest runs these tests one at a time (RESOURCE_LOCK): the fake camera needs
+// UDP port 3956 on 127.0.0.1.
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -13,6 +15,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -101,6 +104,29 @@ std::string unique_serial(const char* tag) {
   return std::string(tag) + std::to_string(::getpid() % 100000);
 }
 
+/// GigE discovery on for one test (list_devices() and opening by id need it), back to this
+/// file's default (every interface off) at the end.
+class GigeDiscoveryOn {
+ public:
+  GigeDiscoveryOn() { select_interfaces({/*gige=*/true, /*usb3=*/false, /*fake=*/false}); }
+  ~GigeDiscoveryOn() { select_interfaces({/*gige=*/false, /*usb3=*/false, /*fake=*/false}); }
+  GigeDiscoveryOn(const GigeDiscoveryOn&) = delete;
+  GigeDiscoveryOn& operator=(const GigeDiscoveryOn&) = delete;
+};
+
+// The fake camera with this serial as list_devices() shows it, once the freshly spawned
+// process answers discovery (bounded); nullopt when it never shows up.
+std::optional<DeviceInfo> listed_camera(const std::string& serial) {
+  const auto deadline = Clock::now() + std::chrono::seconds(10);
+  while (Clock::now() < deadline) {
+    for (const auto& d : list_devices()) {
+      if (d.serial == serial) return d;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 TEST(GenicamGige, StreamsOverLoopback) {
@@ -118,6 +144,59 @@ TEST(GenicamGige, StreamsOverLoopback) {
   // Loopback with the fake's default 0 packet-loss ratio: every frame arrives whole.
   EXPECT_EQ(stats.frames_lost, 0u);
   EXPECT_EQ(stats.frames_incomplete, 0u);
+}
+
+// Issue #30: discovery also hears the fake camera on 127.0.0.1 through the Ethernet
+// interface's socket; opening by id must still stream over loopback.
+TEST(GenicamGige, OpensByTheListedIdAndStreams) {
+  const std::string serial = unique_serial("L");
+  FakeGvCamera fake(serial);
+  fake.start();
+  GigeDiscoveryOn discovery;
+  const auto listed = listed_camera(serial);
+  ASSERT_TRUE(listed) << "the fake camera " << serial << " is not listed";
+  EXPECT_EQ(listed->protocol, "GigEVision");
+  EXPECT_EQ(listed->address, "127.0.0.1");
+  ASSERT_NE(listed->id, listed->address);
+  ASSERT_FALSE(listed->id.empty());
+
+  GenicamCamera camera(listed->id, fast_options());
+  EXPECT_EQ(camera.device_id(), listed->id);
+  EXPECT_EQ(camera.info().protocol, "GigEVision");
+  EXPECT_EQ(camera.info().serial, serial);
+  camera.start();
+  constexpr int kFrames = 30;
+  int frames = 0;
+  for (int i = 0; i < 3 * kFrames && frames < kFrames; ++i) {
+    const GrabResult r = camera.grab();
+    if (r.status != GrabStatus::kFrame) continue;
+    ++frames;
+    EXPECT_EQ(r.frame.image.cols, 320);
+    EXPECT_EQ(r.frame.image.rows, 240);
+    EXPECT_EQ(r.frame.image.type(), CV_8UC1);
+    EXPECT_EQ(r.frame.pixel_format, "Mono8");
+  }
+  EXPECT_EQ(frames, kFrames) << camera.statistics().timeouts << " timeouts";
+  EXPECT_EQ(camera.statistics().frames_incomplete, 0u);
+}
+
+TEST(GenicamGige, AnUnknownIdFailsNamingItAndTheListedIds) {
+  const std::string serial = unique_serial("U");
+  FakeGvCamera fake(serial);
+  fake.start();
+  GigeDiscoveryOn discovery;
+  const auto listed = listed_camera(serial);
+  ASSERT_TRUE(listed) << "the fake camera " << serial << " is not listed";
+  const std::string unknown = "No-Such-Camera-" + serial;
+  try {
+    GenicamCamera camera(unknown, fast_options());
+    ADD_FAILURE() << "opened a camera that does not exist";
+  } catch (const rgbdt::core::Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(unknown), std::string::npos) << what;
+    EXPECT_NE(what.find("no camera has this id"), std::string::npos) << what;
+    EXPECT_NE(what.find("'" + listed->id + "'"), std::string::npos) << what;
+  }
 }
 
 TEST(GenicamGige, ReportsAKilledCameraAndRecoversWhenItIsBack) {
@@ -260,4 +339,65 @@ TEST(GenicamGige, RecorderKeepsWholeIndexedFramesAcrossACameraLoss) {
   EXPECT_NE(text.find("reconnected"), std::string::npos) << text;
   EXPECT_NE(text.find("disconnects 1, reconnects 1"), std::string::npos) << text;
   expect_whole_indexed_frames(out);
+}
+
+// Issue #30 end to end: `rgbdt_camera record` in a fresh process with the id `rgbdt_camera
+// list` prints (before the fix Aravis opened it from the Ethernet interface and recorded
+// nothing).
+TEST(GenicamGige, RecorderRecordsByTheIdListPrints) {
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "GenicamGige.RecordByListedId";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path out = dir / "thermal", log = dir / "log";
+  const std::string serial = unique_serial("I");
+  FakeGvCamera fake(serial);
+  fake.start();
+
+  // `list` prints "ID PROTOCOL VENDOR MODEL SERIAL ADDRESS" rows.
+  std::string id;
+  const auto list_deadline = Clock::now() + std::chrono::seconds(20);
+  while (id.empty() && Clock::now() < list_deadline) {
+    const pid_t pid = spawn_recorder({"list", "--interfaces", "gige"}, log);
+    int status = 0;
+    ASSERT_TRUE(wait_for([&] { return ::waitpid(pid, &status, WNOHANG) == pid; },
+                         std::chrono::seconds(20)));
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << slurp(log);
+    std::istringstream rows(slurp(log));
+    for (std::string row; std::getline(rows, row);) {
+      std::istringstream fields(row);
+      std::string first, protocol, vendor, model, listed_serial;
+      fields >> first >> protocol >> vendor >> model >> listed_serial;
+      if (listed_serial == serial) id = first;
+    }
+  }
+  ASSERT_FALSE(id.empty()) << "the fake camera " << serial << " is not listed:\n" << slurp(log);
+  ASSERT_NE(id, "127.0.0.1");
+
+  constexpr size_t kFrames = 30;
+  const pid_t pid = spawn_recorder(
+      {"record", "--interfaces", "gige", "--id", id, "--frames", std::to_string(kFrames), "--out",
+       out.string(), "--pixel-format", "Mono16", "--roi", "0,0,320,240", "--rate", "50",
+       "--timeout-ms", "300", "--give-up", "10"},
+      log);
+  int status = 0;
+  if (!wait_for([&] { return ::waitpid(pid, &status, WNOHANG) == pid; },
+                std::chrono::seconds(30))) {
+    ::kill(pid, SIGINT);
+    if (!wait_for([&] { return ::waitpid(pid, &status, WNOHANG) == pid; },
+                  std::chrono::seconds(20))) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+    }
+    FAIL() << "record --id " << id << " did not finish " << kFrames << " frames in 30 s:\n"
+           << slurp(log);
+  }
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << slurp(log);
+  const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
+  EXPECT_EQ(index.size(), kFrames) << slurp(log);
+  expect_whole_indexed_frames(out);
+  for (const auto& e : index) {
+    const cv::Mat image = cv::imread(e.file, cv::IMREAD_UNCHANGED);
+    EXPECT_EQ(image.cols, 320) << e.file;
+    EXPECT_EQ(image.rows, 240) << e.file;
+  }
 }

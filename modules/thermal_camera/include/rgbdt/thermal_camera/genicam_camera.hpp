@@ -25,7 +25,8 @@ struct DeviceInfo {
   std::string vendor;
   std::string model;
   std::string serial;
-  std::string address;  ///< IP address for GigE, empty otherwise
+  std::string address;      ///< IP address for GigE, empty otherwise
+  std::string physical_id;  ///< MAC address for GigE, bus position for USB3; may be empty
 };
 
 /// Which Aravis transport interfaces list_devices() and GenicamCamera search. Process-wide
@@ -112,9 +113,12 @@ class GenicamCamera {
   /// Opens the device and applies the options. `device_id` is an Aravis id as listed by
   /// list_devices() ("Fake_1", "<vendor>-<serial>", a MAC address) or the IPv4 address
   /// of a GigE camera: an address is opened directly from the local interface on its
-  /// subnet, without broadcast discovery (and 127.0.0.1 keeps all traffic on loopback). Throws
-  /// std::invalid_argument for invalid options and rgbdt::core::Error (naming the device and the
-  /// feature) when the device cannot be opened or refuses a setting.
+  /// subnet, without broadcast discovery (and 127.0.0.1 keeps all traffic on loopback). An
+  /// id is looked up in list_devices() (one discovery on the selected interfaces, ~1 s with
+  /// GigE, also on each reconnect attempt) and a GigE camera found there is opened by its
+  /// address the same way. Throws std::invalid_argument for invalid options and
+  /// rgbdt::core::Error (naming the device and the feature) when the device cannot be opened
+  /// or refuses a setting; for an id no camera has, the message lists the ids there are.
   explicit GenicamCamera(const std::string& device_id, const GenicamOptions& options = {});
   /// May wait for a lost device's background release (Aravis's protocol timeouts, a few s).
   ~GenicamCamera();
