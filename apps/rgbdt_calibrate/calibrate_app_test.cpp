@@ -150,6 +150,9 @@ TEST(RgbdtCalibrate, AFailedSeedFallsBackToTheAutomaticDetectionAndSaysSo) {
   EXPECT_NE(report.find("view 0: LIDAR seed: seeded detection failed (no points near the seed"), std::string::npos)
       << report;
   EXPECT_NE(report.find("the automatic detection found the target"), std::string::npos) << report;
+  // The report ends with the options the run used, as --config reads them.
+  EXPECT_NE(report.find("## Configuration"), std::string::npos) << report;
+  EXPECT_NE(report.find("camera: rgb\nmethod: edge\n"), std::string::npos) << report;
 }
 
 // One camera that cannot be calibrated (an initial guess that points it away from the

@@ -13,6 +13,7 @@
 #include <optional>
 #include <sstream>
 
+#include "app_config.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
@@ -147,6 +148,7 @@ int main(int argc, char** argv) {
       "when the target was found in every view, 2 when it was missed in some.\n"
       "Exit codes: 0 every camera PASS or WARN; 1 bad input; 2 a camera FAILed or was not\n"
       "calibrated (named in report.md and on stderr); 130 interrupted (no report.md)."};
+  rgbdt::apps::add_config_option(app, argc, argv);
   std::string session_dir, out_dir, camera_choice = "all", method_name = "edge", initial_path;
   bool verbose = false;
   std::string seeds = "all";
@@ -443,6 +445,8 @@ int main(int argc, char** argv) {
       first = false;
     }
     doc << (first ? "none" : "") << ").\n\n" << report.str();
+    doc << "## Configuration\n\nThe options this run used (`--config` reads this block back):\n\n```yaml\n"
+        << rgbdt::apps::effective_config_yaml(app) << "```\n";
     core::write_file_atomic(report_path, doc.str());
     std::printf("wrote %s\n", report_path.c_str());
     if (!failed.empty()) {

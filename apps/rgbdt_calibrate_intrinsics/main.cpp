@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "app_config.hpp"
 #include "rgbdt/calib_targets/image_target.hpp"
 #include "rgbdt/calib_targets/intrinsics.hpp"
 #include "rgbdt/core/camera_info.hpp"
@@ -63,7 +64,8 @@ std::string verdict_problem(const ct::IntrinsicsResult& r, cv::Size size, double
 
 void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std::vector<cv::Mat>& images,
                   const std::vector<ct::PatternDetection>& det, const std::string& baseline,
-                  const std::vector<std::string>& skipped, const std::string& verdict) {
+                  const std::vector<std::string>& skipped, const std::string& verdict,
+                  const std::string& config_yaml) {
   fs::create_directories(dir / "views");
   std::ostringstream md;
   md << "# Intrinsic calibration\n\n";
@@ -118,6 +120,8 @@ void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std:
   write_png(dir / "residuals.png", residuals);
   rgbdt::core::write_file_atomic((dir / "per_view_errors.csv").string(), csv.str());
   md << "\nImages: `coverage.png`, `residuals.png`, `views/*_corners.png`; per-view errors in `per_view_errors.csv`.\n";
+  md << "\n## Configuration\n\nThe options this run used (`--config` reads this block back):\n\n```yaml\n"
+     << config_yaml << "```\n";
   // Last: report.md marks a complete report.
   rgbdt::core::write_file_atomic((dir / "report.md").string(), md.str());
 }
@@ -135,6 +139,7 @@ int main(int argc, char** argv) {
       "are skipped and named. An estimate that fails its checks (finite, principal point inside the\n"
       "image, RMS within --max-rms) is reported as failed and not written (exit 2).\n"
       "Writes a ROS camera_info YAML and, with --report, report.md, per-view errors and PNGs."};
+  rgbdt::apps::add_config_option(app, argc, argv);
   std::string images_dir, pattern_name = "checkerboard", model_name = "plumb_bob", out, report_dir, camera_name = "camera";
   int cols = 0, rows = 0;
   double square = 0.0;
@@ -314,7 +319,7 @@ int main(int argc, char** argv) {
       return 130;
     }
     if (!report_dir.empty()) {
-      write_report(report_dir, result, images, det, baseline, skipped, verdict);
+      write_report(report_dir, result, images, det, baseline, skipped, verdict, rgbdt::apps::effective_config_yaml(app));
       std::cout << "report: " << (fs::path(report_dir) / "report.md").string() << "\n";
     }
     if (!verdict.empty()) {

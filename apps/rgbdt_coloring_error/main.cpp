@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "app_config.hpp"
 #include "report.hpp"
 #include "setup.hpp"
 #include "rgbdt/core/camera_info.hpp"
@@ -29,6 +30,7 @@ constexpr double kMaxTableRows = 10000;
 constexpr int kMaxMonteCarlo = 1000000;
 
 struct Options {
+  std::string config_yaml;  ///< the effective configuration, for the reports
   // Paper mode.
   double fx = 0.0, lidar_noise_m = 0.02, fx_error = 0.0, x_m = 5.0;
   bool json = false;
@@ -146,6 +148,7 @@ int run_report(const Options& o) {
   settings.camera_name = o.camera.empty() ? sources.intrinsics.camera_name : o.camera;
   settings.intrinsics_path = o.intrinsics;
   settings.extrinsics_path = extrinsics_path;
+  settings.config_yaml = o.config_yaml;
 
   if (!o.rotation_sigma_deg.empty() || !o.translation_sigma_m.empty()) {
     if (o.rotation_sigma_deg.size() != 3 || o.translation_sigma_m.size() != 3) {
@@ -233,6 +236,7 @@ int main(int argc, char** argv) {
       "  rgbdt_coloring_error --fx 1335.054 --lidar-noise 0.02 --fx-error 2 --json\n"
       "  rgbdt_coloring_error --calib calib/ --intrinsics rgb.yaml --report out/ --intrinsics-sigma 2 2 1.5 1.5\n"
       "  rgbdt_coloring_error --setup coloring_session/ --calib calib/\n"};
+  rgbdt::apps::add_config_option(app, argc, argv);
   Options o;
   auto* fx = app.add_option("--fx", o.fx, "paper mode: focal length fx [px]");
   auto* noise = app.add_option("--lidar-noise", o.lidar_noise_m, "LIDAR range noise dz [m], 1 sigma (default 0.02)");
@@ -269,6 +273,7 @@ int main(int argc, char** argv) {
   app.add_option("--monte-carlo", o.monte_carlo, "add a Monte Carlo check column with N samples per depth");
   CLI11_PARSE(app, argc, argv);
   (void)noise;
+  o.config_yaml = rgbdt::apps::effective_config_yaml(app);
 
   core::set_log_sink(core::stderr_log_sink);
   if (verbose) core::set_log_level(core::LogLevel::kDebug);
@@ -295,6 +300,7 @@ int main(int argc, char** argv) {
       settings.intrinsics_sigma = o.intrinsics_sigma;
       settings.lidar_noise_m = o.lidar_noise_m;
       settings.report_dir = o.report;
+      settings.config_yaml = o.config_yaml;
       if (!o.rotation_sigma_deg.empty() || !o.translation_sigma_m.empty()) {
         if (o.rotation_sigma_deg.size() != 3 || o.translation_sigma_m.size() != 3) {
           throw std::invalid_argument("--rotation-sigma-deg and --translation-sigma-m: expected 3 values each");

@@ -122,6 +122,7 @@ ReportFiles write_report(const std::string& dir, const error_model::ColoringErro
     }
   }
   md << "\n![predicted colouring error](" << std::filesystem::path(files.png).filename().string() << ")\n";
+  md << "\n## Configuration\n\nThe options this run used (`--config` reads this block back):\n\n```yaml\n" << settings.config_yaml << "```\n";
   core::write_file_atomic(files.markdown, md.str());
 
   // Plot: pixel error and surface error vs depth, one curve per source.

@@ -16,6 +16,7 @@ struct ReportSettings {
   std::vector<double> table_depths_m;  // rows of the Markdown table
   double plot_min_m = 1.0, plot_max_m = 20.0;
   int monte_carlo_samples = 0;         // 0: no Monte Carlo column
+  std::string config_yaml;             // the app's effective configuration, recorded in the report
 };
 
 struct ReportFiles {

@@ -351,7 +351,8 @@ int run_setup(const SetupSession& session, const SetupSettings& settings) {
     fs::create_directories(settings.report_dir);
     const std::string out_path = (fs::path(settings.report_dir) / "coloring_setup.md").string();
     core::write_file_atomic(out_path, "# Coloring-error setup (paper Sec. 4.4)\n\nSession `" + session.directory +
-                                          "`\n" + md.str());
+                                          "`\n" + md.str() +
+                                          "\n## Configuration\n\nThe options this run used (`--config` reads this block back):\n\n```yaml\n" + settings.config_yaml + "```\n");
     std::cout << "\nwrote " << out_path << "\n";
   }
   if (measured_tables == 0) {

@@ -41,6 +41,7 @@ struct SetupSettings {
   /// camera frame, T' = from_vector6(offset) * T (empty: as calibrated).
   std::optional<Eigen::Matrix<double, 6, 1>> extrinsics_offset;
   std::string report_dir;  ///< also write coloring_setup.md there (empty: stdout only)
+  std::string config_yaml;  ///< the app's effective configuration, recorded in coloring_setup.md
 };
 
 /// Measures every view with every camera, prints the tables; returns the exit code.

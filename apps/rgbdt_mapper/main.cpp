@@ -44,6 +44,7 @@
 #include <sstream>
 #include <string_view>
 
+#include "app_config.hpp"
 #include "rgbdt/cloud/cloud_io.hpp"
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/camera_info.hpp"
@@ -392,6 +393,7 @@ int main(int argc, char** argv) {
       "all; summary.json is written last and marks a complete run. Ctrl-C stops at the next\n"
       "cloud, says which outputs are complete, writes no summary.json and exits 130; a second\n"
       "Ctrl-C ends at once without leaving temporary files."};
+  rgbdt::apps::add_config_option(app, argc, argv);
   std::string session_path, calib_dir, out_dir, backend = "rgicp", lidar_source = "auto";
   double resolution_m = 0.05;
   int max_clouds = 0;
@@ -425,6 +427,32 @@ int main(int argc, char** argv) {
                  "LIDAR input: rawlog (lidar.rawlog + tilt_rig.yaml through the assembler), clouds (the "
                  "PCD index), or auto (rawlog when the session has both, else clouds)")
       ->check(CLI::IsMember({"auto", "rawlog", "clouds"}));
+  // The registration's parameters, over the defaults (or --accurate's values) when given;
+  // docs/mapping.md says how each was chosen.
+  RegistrationOptions reg_given;
+  const std::string reg_group = "Registration (default, or --accurate's value, when not given)";
+  auto* opt_voxel = app.add_option("--source-voxel", reg_given.source_voxel_m,
+                                   "voxel each cloud is downsampled to before registration [m]")
+                        ->check(CLI::PositiveNumber)->group(reg_group);
+  auto* opt_gate = app.add_option("--max-correspondence", reg_given.max_correspondence_m,
+                                  "correspondence gate, above the expected prediction error [m]")
+                       ->check(CLI::PositiveNumber)->group(reg_group);
+  auto* opt_iterations = app.add_option("--max-iterations", reg_given.max_iterations,
+                                        "correspondence updates (Gauss-Newton steps for rgicp) per registration")
+                             ->check(CLI::Range(1, 1000))->group(reg_group);
+  auto* opt_scale = app.add_option("--robust-scale2", reg_given.robust_scale2,
+                                   "rgicp: squared Mahalanobis distance where a correspondence's weight halves")
+                        ->check(CLI::PositiveNumber)->group(reg_group);
+  auto* opt_neighbours = app.add_option("--covariance-neighbours", reg_given.covariance_neighbours,
+                                        "rgicp, gicp: neighbours that estimate each point's covariance")
+                             ->check(CLI::Range(3, 200))->group(reg_group);
+  auto* opt_local_map = app.add_option("--local-map-clouds", reg_given.local_map_clouds,
+                                       "previous clouds that form the local map")
+                            ->check(CLI::Range(1, 1000))->group(reg_group);
+  auto* opt_refine = app.add_option("--refine-above", reg_given.refine_above_m,
+                                    "de-skew and register a tilt again when its result differs from the "
+                                    "prediction by more than this (seen at 10 m) [m]")
+                         ->check(CLI::NonNegativeNumber)->group(reg_group);
   CLI11_PARSE(app, argc, argv);
   if (accurate && backend == "icp") {
     std::fprintf(stderr, "rgbdt_mapper: --accurate needs GICP's covariances: --icp rgicp (the default) or gicp, "
@@ -602,6 +630,16 @@ int main(int argc, char** argv) {
     // Stage 1: registration.
     RegistrationOptions reg_options = accurate ? RegistrationOptions::accurate() : RegistrationOptions{};
     reg_options.backend = icp_backend_from_string(backend);
+    if (opt_voxel->count() > 0) reg_options.source_voxel_m = reg_given.source_voxel_m;
+    if (opt_gate->count() > 0) reg_options.max_correspondence_m = reg_given.max_correspondence_m;
+    if (opt_iterations->count() > 0) reg_options.max_iterations = reg_given.max_iterations;
+    if (opt_scale->count() > 0) reg_options.robust_scale2 = reg_given.robust_scale2;
+    if (opt_neighbours->count() > 0) reg_options.covariance_neighbours = reg_given.covariance_neighbours;
+    if (opt_local_map->count() > 0) reg_options.local_map_clouds = reg_given.local_map_clouds;
+    if (opt_refine->count() > 0) reg_options.refine_above_m = reg_given.refine_above_m;
+    if (const std::string why = reg_options.validate(); !why.empty()) {
+      throw std::invalid_argument("registration options: " + why);
+    }
     if (accurate && !motion_prior.empty()) {
       std::printf("rgbdt_mapper: --accurate with --motion-prior: the prior de-skews each tilt, so only the merged "
                   "local map applies (the smooth start-up and windows are for LIDAR only)\n");
@@ -915,6 +953,16 @@ int main(int argc, char** argv) {
       first = false;
     }
     json << "}";
+    json << ",\n  \"config\": " << rgbdt::apps::effective_config_json(app);
+    // What registration ran with, --accurate's values included.
+    json << ",\n  \"registration\": {\"backend\": \"" << to_string(reg_options.backend)
+         << "\", \"source_voxel_m\": " << json_number(reg_options.source_voxel_m)
+         << ", \"max_correspondence_m\": " << json_number(reg_options.max_correspondence_m)
+         << ", \"max_iterations\": " << reg_options.max_iterations
+         << ", \"robust_scale2\": " << json_number(reg_options.robust_scale2)
+         << ", \"covariance_neighbours\": " << reg_options.covariance_neighbours
+         << ", \"local_map_clouds\": " << reg_options.local_map_clouds
+         << ", \"refine_above_m\": " << json_number(reg_options.refine_above_m) << "}";
     json << ",\n  \"outputs\": [";
     for (std::size_t i = 0; i < written.size(); ++i) json << (i ? ", " : "") << json_string(written[i]);
     json << ", \"summary.json\"],\n  \"outputs_not_written\": {";

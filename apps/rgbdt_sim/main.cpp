@@ -7,6 +7,7 @@
 #include <exception>
 #include <string>
 
+#include "app_config.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/sim/calibration_session.hpp"
 #include "rgbdt/sim/checkerboard_session.hpp"
@@ -25,6 +26,7 @@ int main(int argc, char** argv) {
       "rgbdt_sim: simulated RGB-Depth-Thermal rig sessions with ground truth.\n"
       "Every session folder gets ground_truth.yaml and true_calib/ beside the data.\n"
       "Run 'rgbdt_sim <command> --help' for the options of a command."};
+  rgbdt::apps::add_config_option(app, argc, argv);
   app.require_subcommand(1);
   app.fallthrough();  // global flags may also follow the command
   bool quiet = false;

@@ -335,6 +335,10 @@ TEST(MapperApp, MapsARawSimulatedStreetSessionThroughTheAssembler) {
   EXPECT_NE(json_accurate.find("\"smooth_start_up\": true"), std::string::npos) << json_accurate;
   EXPECT_NE(json_accurate.find("\"first_tilt_reanchored\": false"), std::string::npos) << json_accurate;
   EXPECT_DOUBLE_EQ(json_value(json_accurate, "merged_local_map_m"), 0.25) << json_accurate;
+  // The summary records the options as given and what registration ran with.
+  EXPECT_NE(json_accurate.find("\"resolution\": \"0.1\", \"icp\": \"rgicp\""), std::string::npos) << json_accurate;
+  EXPECT_NE(json_accurate.find("\"accurate\": true"), std::string::npos) << json_accurate;
+  EXPECT_DOUBLE_EQ(json_value(json_accurate, "local_map_clouds"), 24) << json_accurate;
   EXPECT_LT(json_value(json_accurate, "trajectory_rmse_m"), 0.05) << json_accurate;
   std::ifstream log_accurate(dir / "log_accurate.txt");
   const std::string text_accurate((std::istreambuf_iterator<char>(log_accurate)), {});
