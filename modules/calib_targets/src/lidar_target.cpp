@@ -852,6 +852,260 @@ BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>&
   return res;
 }
 
+/// The cloud's finite points within the options' range, with their rings.
+struct RangedPoints {
+  std::vector<Vec3> pts;
+  std::vector<int> rings;
+};
+
+RangedPoints points_in_range(const cloud::Cloud& cloud, const LidarDetectionOptions& opt) {
+  RangedPoints out;
+  out.pts.reserve(cloud.size());
+  for (const auto& p : cloud.points) {
+    const Vec3 v(p.x, p.y, p.z);
+    if (!v.allFinite()) continue;
+    const double range = v.norm();
+    if (range < opt.min_range_m || range > opt.max_range_m) continue;
+    out.pts.push_back(v);
+    out.rings.push_back(p.ring);
+  }
+  return out;
+}
+
+/// Half the diagonal of the target: its holes' extent, or its board's when that is larger.
+double board_half_diagonal(const core::TargetSpec& target) {
+  const std::vector<Vec2> layout = target_layout(target);
+  double board_half_diag = 0.0;
+  for (const Vec2& h : layout) {
+    board_half_diag = std::max(board_half_diag, h.norm() + 2.0 * target.radius_m);
+  }
+  if (target.board_size_m) {
+    board_half_diag = std::max(board_half_diag, 0.5 * target.board_size_m->norm());
+  }
+  return board_half_diag;
+}
+
+/// The detection of the board `b` found on `board` (indices into pts).
+void take_board(const BoardResult& b, const std::vector<int>& board, const std::vector<Vec3>& pts,
+                LidarTargetDetection* det) {
+  det->ok = true;
+  det->plane = b.plane;
+  det->holes = b.holes;
+  det->edge_method = b.method;
+  det->cloud_profile = b.profile;
+  det->edge_bias_m = b.edge_bias_m;
+  det->edge_bias_source = b.edge_bias_source;
+  for (int i : board) det->board_points.push_back(pts[static_cast<std::size_t>(i)]);
+}
+
+/// Algorithm 2's FR: the points within R of the seed, and the point nearest the seed.
+struct SeedRegion {
+  std::vector<int> fr;
+  int nearest = -1;
+  double nearest_d = 1e9;
+};
+
+SeedRegion seed_region(const std::vector<Vec3>& pts, const Vec3& seed, double R) {
+  SeedRegion out;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const double d = (pts[i] - seed).norm();
+    if (d <= R) out.fr.push_back(static_cast<int>(i));
+    if (d < out.nearest_d) {
+      out.nearest_d = d;
+      out.nearest = static_cast<int>(i);
+    }
+  }
+  return out;
+}
+
+/// Algorithm 2, lines 1-5: planes of `fr`, largest first, until one holds `nearest`; its
+/// inliers, or none.
+std::vector<int> plane_through(const std::vector<Vec3>& pts, const std::vector<int>& fr,
+                               int nearest, const LidarDetectionOptions& opt) {
+  // The rest of a plane's complement is not a plane: a backdrop larger than the board is
+  // often the first plane found, and the board is among what remains.
+  std::vector<int> fg, rest = fr;
+  for (int k = 0; k < 6 && rest.size() >= 3 && fg.empty(); ++k) {
+    std::vector<int> in, out;
+    if (!sac_plane(pts, rest, opt.sac_distance_m, &in, &out)) break;  // line 1
+    if (std::find(in.begin(), in.end(), nearest) != in.end()) fg = std::move(in);
+    rest = std::move(out);
+  }
+  return fg;
+}
+
+/// The part of a plane's inliers `fg` connected to `nearest`, or `fg` when that part has
+/// fewer than 3 points.
+std::vector<int> connected_part(const std::vector<Vec3>& pts, std::vector<int> fg, int nearest,
+                                double board_half_diag) {
+  // A plane's inliers also include unconnected surfaces it cuts (e.g. a strip of the
+  // backdrop where the board's plane meets it, metres away), which would make the segment
+  // far larger than the board. The tolerance bridges the gap between scan lines on the
+  // board, not the gap to the backdrop.
+  const double tolerance = std::max(0.15, 0.25 * board_half_diag);
+  std::vector<int> part;
+  for (auto& cluster : clusters_of(pts, fg, tolerance, 3)) {
+    if (std::find(cluster.begin(), cluster.end(), nearest) != cluster.end()) {
+      part = std::move(cluster);
+      break;
+    }
+  }
+  if (part.size() >= 3) fg = std::move(part);
+  return fg;
+}
+
+/// Algorithm 2 with the clicked point: the board on the plane through the point nearest
+/// the seed.
+void detect_at_seed(const RangedPoints& in, bool has_ring, const core::TargetSpec& target,
+                    const LidarDetectionOptions& opt, double board_half_diag, const Vec3& seed,
+                    LidarTargetDetection* det) {
+  const std::vector<Vec3>& pts = in.pts;
+  // FR = points within R of the seed.
+  const double R = opt.seed_radius_m > 0 ? opt.seed_radius_m : 2.0 * board_half_diag + 0.2;
+  const SeedRegion region = seed_region(pts, seed, R);
+  if (region.fr.size() < 3 || region.nearest_d > 0.5 * R) {
+    det->reason = "no points near the seed (nearest at " + std::to_string(region.nearest_d) + " m)";
+    return;
+  }
+  std::vector<int> fg = plane_through(pts, region.fr, region.nearest, opt);
+  if (fg.empty()) {
+    det->reason = "no plane through the point nearest the seed";
+    return;
+  }
+  // Keep the part of that plane that contains the seed.
+  fg = connected_part(pts, std::move(fg), region.nearest, board_half_diag);
+  std::vector<int> c;
+  if (!sac_plane(pts, fg, opt.refit_distance_m, &c, nullptr)) {  // line 6
+    det->reason = "the seed's segment is not planar";
+    return;
+  }
+  const BoardResult b = holes_on_board(pts, c, in.rings, has_ring, target, opt);
+  if (!b.ok) {
+    det->reason = "seeded board: " + b.reason;
+    return;
+  }
+  take_board(b, c, pts, det);
+}
+
+/// The points' voxel centroids (PCL VoxelGrid).
+std::vector<Vec3> voxel_downsample(const std::vector<Vec3>& pts, double voxel_m) {
+  std::vector<int> every(pts.size());
+  std::iota(every.begin(), every.end(), 0);
+  const pcl::PointCloud<pcl::PointXYZ>::Ptr all = to_pcl(pts, every);
+  pcl::VoxelGrid<pcl::PointXYZ> vg;
+  vg.setInputCloud(all);
+  vg.setLeafSize(static_cast<float>(voxel_m), static_cast<float>(voxel_m),
+                 static_cast<float>(voxel_m));
+  pcl::PointCloud<pcl::PointXYZ> out;
+  vg.filter(out);
+  std::vector<Vec3> ds;
+  for (const auto& p : out.points) ds.emplace_back(p.x, p.y, p.z);
+  return ds;
+}
+
+/// Planar segments of the downsampled cloud by region growing on normals (PCL), largest
+/// first: a small board in a large scene is rarely among the first planes a global RANSAC
+/// finds.
+std::vector<std::vector<int>> planar_segments(const std::vector<Vec3>& ds,
+                                              const LidarDetectionOptions& opt) {
+  const int min_ds_points = std::max(10, opt.min_board_points / 4);
+  std::vector<std::vector<int>> segments;
+  std::vector<int> every(ds.size());
+  std::iota(every.begin(), every.end(), 0);
+  auto dpc = to_pcl(ds, every);
+  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+  pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+  pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> ne;
+  ne.setInputCloud(dpc);
+  ne.setSearchMethod(tree);
+  ne.setKSearch(12);
+  ne.compute(*normals);
+  pcl::RegionGrowing<pcl::PointXYZ, pcl::Normal> rg;
+  rg.setMinClusterSize(min_ds_points);
+  rg.setMaxClusterSize(static_cast<int>(ds.size()) + 1);
+  rg.setSearchMethod(tree);
+  rg.setNumberOfNeighbours(12);
+  rg.setInputCloud(dpc);
+  rg.setInputNormals(normals);
+  rg.setSmoothnessThreshold(static_cast<float>(opt.smoothness_deg * kPi / 180.0));
+  rg.setCurvatureThreshold(0.05f);
+  std::vector<pcl::PointIndices> found;
+  rg.extract(found);
+  for (const auto& f : found) segments.push_back(f.indices);
+  std::sort(segments.begin(), segments.end(),
+            [](const auto& x, const auto& y) { return x.size() > y.size(); });
+  return segments;
+}
+
+/// The full-resolution points near a downsampled segment's plane, in its box grown by half
+/// the board (region growing may stop at a noisy part of the board); false when the
+/// segment is too small or too large for the board.
+bool points_near_segment(const std::vector<Vec3>& pts, const std::vector<Vec3>& ds,
+                         const std::vector<int>& seg, const core::TargetSpec& target,
+                         const LidarDetectionOptions& opt, double board_half_diag,
+                         std::vector<int>* full) {
+  const Eigen::Vector4d plane = fit_plane(ds, seg);
+  // Quick size test on the downsampled segment before touching the full cloud.
+  Vec3 lo = ds[static_cast<std::size_t>(seg[0])], hi = lo;
+  for (int i : seg) {
+    lo = lo.cwiseMin(ds[static_cast<std::size_t>(i)]);
+    hi = hi.cwiseMax(ds[static_cast<std::size_t>(i)]);
+  }
+  const double diag = (hi - lo).norm();
+  const double max_diag =
+      target.board_size_m ? 1.5 * target.board_size_m->norm() + 0.3 : 8.0 * board_half_diag + 1.0;
+  if (diag < board_half_diag || diag > max_diag) return false;
+  const double grow = 0.5 * board_half_diag + opt.search_voxel_m;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Vec3& p = pts[i];
+    if (std::abs(plane.head<3>().dot(p) + plane[3]) > 2.0 * opt.sac_distance_m) continue;
+    if ((p.array() < lo.array() - grow).any() || (p.array() > hi.array() + grow).any()) continue;
+    full->push_back(static_cast<int>(i));
+  }
+  return true;
+}
+
+/// The automatic search's outcome: the best board (most matched holes, then the lowest
+/// score) and, when there is none, why the last segment tried failed.
+struct BestBoard {
+  BoardResult result;
+  std::vector<int> board;  ///< indices into the points
+  std::string last_reason = "no plane segment";
+  std::size_t segments = 0;  ///< planar segments found
+};
+
+/// Planes of the cloud, largest first, found on a voxel-downsampled copy (for speed); each
+/// plane split into Euclidean segments whose full-resolution points are then re-fitted
+/// (Algorithm 2, line 6) and searched for the target's holes.
+BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSpec& target,
+                     const LidarDetectionOptions& opt, double board_half_diag) {
+  const std::vector<Vec3>& pts = in.pts;
+  const std::vector<Vec3> ds = voxel_downsample(pts, opt.search_voxel_m);
+  const std::vector<std::vector<int>> segments = planar_segments(ds, opt);
+  BestBoard best;
+  best.segments = segments.size();
+  for (const auto& seg : segments) {
+    std::vector<int> full;
+    if (!points_near_segment(pts, ds, seg, target, opt, board_half_diag, &full)) continue;
+    std::vector<int> c;
+    if (!sac_plane(pts, full, opt.refit_distance_m, &c, nullptr)) continue;
+    const BoardResult b = holes_on_board(pts, c, in.rings, has_ring, target, opt);
+    if (b.ok) {
+      core::log_debug("calib_targets: board with ", b.matched, " matched holes, score ", b.score);
+      if (!best.result.ok || b.matched > best.result.matched ||
+          (b.matched == best.result.matched && b.score < best.result.score)) {
+        best.result = b;
+        best.board = c;
+      }
+      continue;
+    }
+    best.last_reason = b.reason;
+    core::log_debug("calib_targets: segment of ", c.size(), " points at ",
+                    pts[static_cast<std::size_t>(c[0])].transpose(), ": ", b.reason);
+  }
+  return best;
+}
+
 }  // namespace
 
 std::string LidarDetectionOptions::validate() const {
@@ -945,197 +1199,22 @@ LidarTargetDetection detect_target_in_cloud(const cloud::Cloud& cloud, bool has_
     det.reason = "empty cloud";
     return det;
   }
-  const Vec3 up = options.up_lidar.normalized();
   LidarDetectionOptions opt = options;
-  opt.up_lidar = up;
-
-  std::vector<Vec3> pts;
-  std::vector<int> rings;
-  pts.reserve(cloud.size());
-  for (const auto& p : cloud.points) {
-    const Vec3 v(p.x, p.y, p.z);
-    if (!v.allFinite()) continue;
-    const double range = v.norm();
-    if (range < opt.min_range_m || range > opt.max_range_m) continue;
-    pts.push_back(v);
-    rings.push_back(p.ring);
-  }
-  if (pts.size() < 3) {
+  opt.up_lidar = options.up_lidar.normalized();
+  const RangedPoints in = points_in_range(cloud, opt);
+  if (in.pts.size() < 3) {
     det.reason = "no points between " + std::to_string(opt.min_range_m) + " and " +
                  std::to_string(opt.max_range_m) + " m";
     return det;
   }
-  const std::vector<Vec2> layout = target_layout(target);
-  double board_half_diag = 0.0;
-  for (const Vec2& h : layout) board_half_diag = std::max(board_half_diag, h.norm() + 2.0 * target.radius_m);
-  if (target.board_size_m) board_half_diag = std::max(board_half_diag, 0.5 * target.board_size_m->norm());
-
-  auto finish = [&](const BoardResult& b, const std::vector<int>& board) {
-    det.ok = true;
-    det.plane = b.plane;
-    det.holes = b.holes;
-    det.edge_method = b.method;
-    det.cloud_profile = b.profile;
-    det.edge_bias_m = b.edge_bias_m;
-    det.edge_bias_source = b.edge_bias_source;
-    for (int i : board) det.board_points.push_back(pts[static_cast<std::size_t>(i)]);
-  };
-
+  const double board_half_diag = board_half_diagonal(target);
   if (seed) {
-    // Algorithm 2 with the clicked point: FR = points within R of the seed.
-    const double R = opt.seed_radius_m > 0 ? opt.seed_radius_m : 2.0 * board_half_diag + 0.2;
-    std::vector<int> fr;
-    int nearest = -1;
-    double nearest_d = 1e9;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      const double d = (pts[i] - *seed).norm();
-      if (d <= R) fr.push_back(static_cast<int>(i));
-      if (d < nearest_d) {
-        nearest_d = d;
-        nearest = static_cast<int>(i);
-      }
-    }
-    if (fr.size() < 3 || nearest_d > 0.5 * R) {
-      det.reason = "no points near the seed (nearest at " + std::to_string(nearest_d) + " m)";
-      return det;
-    }
-    // Lines 1-5: planes around the seed, largest first, until one holds the point nearest
-    // the seed. The rest of a plane's complement is not a plane: a backdrop larger than the
-    // board is often the first plane found, and the board is among what remains.
-    std::vector<int> fg, rest = fr;
-    for (int k = 0; k < 6 && rest.size() >= 3 && fg.empty(); ++k) {
-      std::vector<int> in, out;
-      if (!sac_plane(pts, rest, opt.sac_distance_m, &in, &out)) break;  // line 1
-      if (std::find(in.begin(), in.end(), nearest) != in.end()) fg = std::move(in);
-      rest = std::move(out);
-    }
-    if (fg.empty()) {
-      det.reason = "no plane through the point nearest the seed";
-      return det;
-    }
-    // Keep the part of that plane that contains the seed: a plane's inliers also include
-    // unconnected surfaces it cuts (e.g. a strip of the backdrop where the board's plane
-    // meets it, metres away), which would make the segment far larger than the board.
-    // The tolerance bridges the gap between scan lines on the board, not the gap to the
-    // backdrop.
-    {
-      const double tolerance = std::max(0.15, 0.25 * board_half_diag);
-      std::vector<int> part;
-      for (auto& cluster : clusters_of(pts, fg, tolerance, 3)) {
-        if (std::find(cluster.begin(), cluster.end(), nearest) != cluster.end()) {
-          part = std::move(cluster);
-          break;
-        }
-      }
-      if (part.size() >= 3) fg = std::move(part);
-    }
-    std::vector<int> c;
-    if (!sac_plane(pts, fg, opt.refit_distance_m, &c, nullptr)) {  // line 6
-      det.reason = "the seed's segment is not planar";
-      return det;
-    }
-    const BoardResult b = holes_on_board(pts, c, rings, has_ring, target, opt);
-    if (!b.ok) {
-      det.reason = "seeded board: " + b.reason;
-      return det;
-    }
-    finish(b, c);
+    detect_at_seed(in, has_ring, target, opt, board_half_diag, *seed, &det);
     return det;
   }
-
-  // Automatic: planes of the cloud, largest first, found on a voxel-downsampled copy (for
-  // speed); each plane split into Euclidean segments whose full-resolution points are then
-  // re-fitted (Algorithm 2, line 6) and searched for the target's holes.
-  std::vector<Vec3> ds;
-  {
-    pcl::PointCloud<pcl::PointXYZ>::Ptr all(new pcl::PointCloud<pcl::PointXYZ>);
-    std::vector<int> every(pts.size());
-    std::iota(every.begin(), every.end(), 0);
-    all = to_pcl(pts, every);
-    pcl::VoxelGrid<pcl::PointXYZ> vg;
-    vg.setInputCloud(all);
-    vg.setLeafSize(static_cast<float>(opt.search_voxel_m), static_cast<float>(opt.search_voxel_m),
-                   static_cast<float>(opt.search_voxel_m));
-    pcl::PointCloud<pcl::PointXYZ> out;
-    vg.filter(out);
-    for (const auto& p : out.points) ds.emplace_back(p.x, p.y, p.z);
-  }
-  const int min_ds_points = std::max(10, opt.min_board_points / 4);
-  // Planar segments of the downsampled cloud by region growing on normals (PCL): a small
-  // board in a large scene is rarely among the first planes a global RANSAC finds.
-  std::vector<std::vector<int>> segments;
-  {
-    std::vector<int> every(ds.size());
-    std::iota(every.begin(), every.end(), 0);
-    auto dpc = to_pcl(ds, every);
-    pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
-    pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
-    pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> ne;
-    ne.setInputCloud(dpc);
-    ne.setSearchMethod(tree);
-    ne.setKSearch(12);
-    ne.compute(*normals);
-    pcl::RegionGrowing<pcl::PointXYZ, pcl::Normal> rg;
-    rg.setMinClusterSize(min_ds_points);
-    rg.setMaxClusterSize(static_cast<int>(ds.size()) + 1);
-    rg.setSearchMethod(tree);
-    rg.setNumberOfNeighbours(12);
-    rg.setInputCloud(dpc);
-    rg.setInputNormals(normals);
-    rg.setSmoothnessThreshold(static_cast<float>(opt.smoothness_deg * kPi / 180.0));
-    rg.setCurvatureThreshold(0.05f);
-    std::vector<pcl::PointIndices> found;
-    rg.extract(found);
-    for (const auto& f : found) segments.push_back(f.indices);
-  }
-  std::sort(segments.begin(), segments.end(),
-            [](const auto& x, const auto& y) { return x.size() > y.size(); });
-  std::string last_reason = "no plane segment";
-  BoardResult best;
-  std::vector<int> best_board;
-  for (const auto& seg : segments) {
-    {
-      const Eigen::Vector4d plane = fit_plane(ds, seg);
-      // Quick size test on the downsampled segment before touching the full cloud.
-      Vec3 lo = ds[static_cast<std::size_t>(seg[0])], hi = lo;
-      for (int i : seg) {
-        lo = lo.cwiseMin(ds[static_cast<std::size_t>(i)]);
-        hi = hi.cwiseMax(ds[static_cast<std::size_t>(i)]);
-      }
-      const double diag = (hi - lo).norm();
-      const double max_diag = target.board_size_m ? 1.5 * target.board_size_m->norm() + 0.3
-                                                  : 8.0 * board_half_diag + 1.0;
-      if (diag < board_half_diag || diag > max_diag) continue;
-      // Full-resolution points near the segment's plane, in its box grown by half the
-      // board (region growing may stop at a noisy part of the board).
-      std::vector<int> full;
-      const double grow = 0.5 * board_half_diag + opt.search_voxel_m;
-      for (std::size_t i = 0; i < pts.size(); ++i) {
-        const Vec3& p = pts[i];
-        if (std::abs(plane.head<3>().dot(p) + plane[3]) > 2.0 * opt.sac_distance_m) continue;
-        if ((p.array() < lo.array() - grow).any() || (p.array() > hi.array() + grow).any()) continue;
-        full.push_back(static_cast<int>(i));
-      }
-      std::vector<int> c;
-      if (!sac_plane(pts, full, opt.refit_distance_m, &c, nullptr)) continue;
-      const BoardResult b = holes_on_board(pts, c, rings, has_ring, target, opt);
-      if (b.ok) {
-        core::log_debug("calib_targets: board with ", b.matched,
-                        " matched holes, score ", b.score);
-        if (!best.ok || b.matched > best.matched ||
-            (b.matched == best.matched && b.score < best.score)) {
-          best = b;
-          best_board = c;
-        }
-        continue;
-      }
-      last_reason = b.reason;
-      core::log_debug("calib_targets: segment of ", c.size(), " points at ",
-                      pts[static_cast<std::size_t>(c[0])].transpose(), ": ", b.reason);
-    }
-  }
-  if (best.ok) {
-    finish(best, best_board);
+  const BestBoard best = best_board(in, has_ring, target, opt, board_half_diag);
+  if (best.result.ok) {
+    take_board(best.result, best.board, in.pts, &det);
     return det;
   }
   // Noisy dense clouds: normals over a few 5 cm voxels scatter by more than the smoothness
@@ -1149,8 +1228,8 @@ LidarTargetDetection detect_target_in_cloud(const cloud::Cloud& cloud, bool has_
     LidarTargetDetection again = detect_target_in_cloud(cloud, has_ring, target, coarser);
     if (again.ok) return again;
   }
-  det.reason = "no board with the target's holes found among " + std::to_string(segments.size()) +
-               " planar segments (last: " + last_reason + ")";
+  det.reason = "no board with the target's holes found among " + std::to_string(best.segments) +
+               " planar segments (last: " + best.last_reason + ")";
   return det;
 }
 

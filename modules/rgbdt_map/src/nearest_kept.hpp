@@ -1,6 +1,7 @@
 #pragma once
 /// \file
-/// NearestKept, for rgbdt_map's registration (registration.cpp) and its test: not installed.
+/// NearestKept, for rgbdt_map's registration (robust_gicp.cpp, trajectory_curve.cpp) and its test:
+/// not installed.
 #include <pcl/point_types.h>
 
 #include <Eigen/Core>

@@ -1,6 +1,7 @@
 #pragma once
 /// \file
-/// PointTree, for rgbdt_map's registration (registration.cpp) and its test: not installed.
+/// PointTree, for rgbdt_map's registration (robust_gicp.cpp, trajectory_curve.cpp, odometry.cpp)
+/// and its test: not installed.
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 

@@ -6,6 +6,12 @@
 /// lasts 600 ms, during which the cart moves), registered against a local map made of the
 /// previous clouds (so also against its predecessor), starting from the constant-velocity
 /// prediction.
+///
+/// Implemented in src/: registration.cpp (to_string, RegistrationOptions, downsample,
+/// register_clouds, deskew, points_in_world, sensor_origins_in_world), robust_gicp.cpp
+/// (IcpBackend::kRobust and GICP's covariances), trajectory_curve.cpp (the smooth-curve solve
+/// behind RegistrationOptions::start_up_clouds and window_clouds), odometry.cpp (Odometry);
+/// registration_internal.hpp declares what they share.
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
@@ -71,7 +77,7 @@ struct RegistrationOptions {
   double translation_epsilon_m = 1e-4;
   /// ... and rotates it by less than this (PCL GICP: largest change of a rotation matrix
   /// element, ~ the angle; ours: a tenth of it, as the step's angle; a test 10x tighter
-  /// gives the same trajectories in more steps: robust_gicp in registration.cpp). [rad]
+  /// gives the same trajectories in more steps: robust_gicp.cpp). [rad]
   double rotation_epsilon_rad = 1e-4;
   /// GICP and ours: neighbours that estimate each point's covariance (PCL's
   /// k_correspondences).
@@ -287,9 +293,25 @@ class Odometry {
   Reanchoring reanchoring_;
   StartUp start_up_;
   Window window_;
-  void reanchor_first_cloud();
+
+  // add()'s steps, in the order it takes them (odometry.cpp).
+  struct Tilt;  ///< one tilt on its way through add()
+  void check_next_cloud(double cloud_time_s) const;
+  void settle_robust_scale();
+  Tilt prepare_tilt(const cloud::Cloud& cloud, double cloud_time_s) const;
+  void keep_for_start_up(const Tilt& tilt);
+  Step register_tilt(Tilt& tilt);
+  void register_second_cloud(Tilt& tilt, Step& step);
+  void register_against_map(Tilt& tilt, Step& step);
+  void join_local_map(Tilt& tilt, const Step& step);
+  bool window_due() const;
+  void rebuild_target_after_add();
+  bool solves_start_up() const;
+  bool start_up_due() const;
   void smooth_start_up();
   void refine_window();
+  bool reanchoring_due() const;
+  void reanchor_first_cloud();
 };
 
 }  // namespace rgbdt::rgbdt_map
