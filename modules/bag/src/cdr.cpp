@@ -1,6 +1,7 @@
 #include "cdr.hpp"
 
 #include <cstring>
+#include <limits>
 #include <type_traits>
 
 #include "rgbdt/core/error.hpp"
@@ -11,6 +12,14 @@ namespace {
 // CDR aligns each primitive to its size, counted from the first byte after the
 // encapsulation header.
 constexpr std::size_t kHeaderBytes = 4;
+
+// "sensor_msgs/msg/Image" is "sensor_msgs/Image" in ROS 1.
+std::string type_name(const char* ros2_type, Serialization serialization) {
+  std::string name(ros2_type);
+  const std::size_t msg = name.find("/msg/");
+  if (serialization == Serialization::kRos1 && msg != std::string::npos) name.erase(msg, 4);
+  return name;
+}
 
 bool host_is_little_endian() {
   const std::uint16_t one = 1;
@@ -40,9 +49,18 @@ std::string describe(const MessageContext& context) {
          format_time(context.log_time_ns);
 }
 
-CdrReader::CdrReader(const std::uint8_t* data, std::size_t size, const MessageContext& context,
-                     const char* type)
-    : data_(data), size_(size), context_(context), type_(type) {
+MessageReader::MessageReader(const std::uint8_t* data, std::size_t size,
+                             const MessageContext& context, const char* type)
+    : data_(data),
+      size_(size),
+      ros1_(context.serialization == Serialization::kRos1),
+      context_(context),
+      type_(type_name(type, context.serialization)) {
+  if (ros1_) {
+    // ROS 1 messages are little endian, without header or alignment.
+    swap_ = !host_is_little_endian();
+    return;
+  }
   if (size_ < kHeaderBytes) {
     fail("(encapsulation header)", "message has " + std::to_string(size_) +
                                        " bytes, expected at least the 4-byte CDR header");
@@ -55,13 +73,14 @@ CdrReader::CdrReader(const std::uint8_t* data, std::size_t size, const MessageCo
   const bool little = data_[1] == 1;
   swap_ = little != host_is_little_endian();
   pos_ = kHeaderBytes;
+  origin_ = kHeaderBytes;
 }
 
-void CdrReader::fail(const std::string& field, const std::string& what) const {
-  throw core::Error(describe(context_), std::string(type_) + " field " + field + ": " + what);
+void MessageReader::fail(const std::string& field, const std::string& what) const {
+  throw core::Error(describe(context_), type_ + " field " + field + ": " + what);
 }
 
-void CdrReader::need(std::size_t n, const std::string& field) {
+void MessageReader::need(std::size_t n, const std::string& field) {
   if (n > size_ - pos_) {
     fail(field, "needs " + std::to_string(n) + " bytes at offset " + std::to_string(pos_) +
                     " but the message ends after " + std::to_string(size_ - pos_) +
@@ -69,14 +88,15 @@ void CdrReader::need(std::size_t n, const std::string& field) {
   }
 }
 
-void CdrReader::align(std::size_t n, const std::string& field) {
-  const std::size_t pad = (n - (pos_ - kHeaderBytes) % n) % n;
+void MessageReader::align(std::size_t n, const std::string& field) {
+  if (ros1_) return;
+  const std::size_t pad = (n - (pos_ - origin_) % n) % n;
   need(pad, field);
   pos_ += pad;
 }
 
 template <typename T>
-T CdrReader::primitive(const std::string& field) {
+T MessageReader::primitive(const std::string& field) {
   static_assert(std::is_arithmetic_v<T>);
   align(sizeof(T), field);
   need(sizeof(T), field);
@@ -91,19 +111,22 @@ T CdrReader::primitive(const std::string& field) {
   return value;
 }
 
-std::uint8_t CdrReader::u8(const std::string& field) { return primitive<std::uint8_t>(field); }
+std::uint8_t MessageReader::u8(const std::string& field) { return primitive<std::uint8_t>(field); }
 
-bool CdrReader::boolean(const std::string& field) {
+bool MessageReader::boolean(const std::string& field) {
   const std::uint8_t value = primitive<std::uint8_t>(field);
   if (value > 1) fail(field, "bool is " + std::to_string(value) + ", expected 0 or 1");
   return value == 1;
 }
 
-std::int32_t CdrReader::i32(const std::string& field) { return primitive<std::int32_t>(field); }
-std::uint32_t CdrReader::u32(const std::string& field) { return primitive<std::uint32_t>(field); }
-double CdrReader::f64(const std::string& field) { return primitive<double>(field); }
+std::int32_t MessageReader::i32(const std::string& field) { return primitive<std::int32_t>(field); }
+std::uint32_t MessageReader::u32(const std::string& field) {
+  return primitive<std::uint32_t>(field);
+}
+double MessageReader::f64(const std::string& field) { return primitive<double>(field); }
 
-std::uint32_t CdrReader::sequence_length(std::size_t min_element_size, const std::string& field) {
+std::uint32_t MessageReader::sequence_length(std::size_t min_element_size,
+                                             const std::string& field) {
   const std::uint32_t count = u32(field + " (length)");
   const std::size_t left = size_ - pos_;
   if (min_element_size > 0 && count > left / min_element_size) {
@@ -114,8 +137,13 @@ std::uint32_t CdrReader::sequence_length(std::size_t min_element_size, const std
   return count;
 }
 
-std::string CdrReader::string(const std::string& field) {
+std::string MessageReader::string(const std::string& field) {
   const std::uint32_t length = sequence_length(1, field);
+  if (ros1_) {
+    std::string value(reinterpret_cast<const char*>(data_ + pos_), length);
+    pos_ += length;
+    return value;
+  }
   // Some writers (not Fast-DDS) store an empty string as length 0 with no NUL.
   if (length == 0) return {};
   const char* chars = reinterpret_cast<const char*>(data_ + pos_);
@@ -128,33 +156,44 @@ std::string CdrReader::string(const std::string& field) {
   return value;
 }
 
-std::vector<std::uint8_t> CdrReader::bytes(const std::string& field) {
+std::vector<std::uint8_t> MessageReader::bytes(const std::string& field) {
   const std::uint32_t count = sequence_length(1, field);
   std::vector<std::uint8_t> value(data_ + pos_, data_ + pos_ + count);
   pos_ += count;
   return value;
 }
 
-std::vector<double> CdrReader::doubles(const std::string& field) {
+std::vector<double> MessageReader::doubles(const std::string& field) {
   const std::uint32_t count = sequence_length(sizeof(double), field);
   std::vector<double> value(count);
   doubles(value.data(), count, field);
   return value;
 }
 
-void CdrReader::doubles(double* out, std::size_t n, const std::string& field) {
+void MessageReader::doubles(double* out, std::size_t n, const std::string& field) {
   for (std::size_t i = 0; i < n; ++i) out[i] = f64(field + "[" + std::to_string(i) + "]");
 }
 
-Time CdrReader::time(const std::string& field) {
+Time MessageReader::time(const std::string& field) {
   Time t;
+  if (ros1_) {
+    // ROS 1 time: uint32 secs, uint32 nsecs.
+    const std::uint32_t sec = u32(field + ".secs");
+    if (sec > static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max())) {
+      fail(field + ".secs", std::to_string(sec) + " s is after 2038, beyond a 32-bit signed time");
+    }
+    t.sec = static_cast<std::int32_t>(sec);
+    t.nanosec = u32(field + ".nsecs");
+    return t;
+  }
   t.sec = i32(field + ".sec");
   t.nanosec = u32(field + ".nanosec");
   return t;
 }
 
-Header CdrReader::header(const std::string& field) {
+Header MessageReader::header(const std::string& field) {
   Header h;
+  if (ros1_) h.seq = u32(field + ".seq");
   h.stamp = time(field + ".stamp");
   h.frame_id = string(field + ".frame_id");
   return h;

@@ -2,16 +2,27 @@
 
 #include "cdr.hpp"
 #include "rgbdt/bag/reader.hpp"
+#include "rgbdt/core/error.hpp"
 
 namespace rgbdt::bag {
 
-using detail::CdrReader;
+using detail::MessageReader;
+
+Serialization serialization_of(const TopicInfo& topic) {
+  if (topic.serialization_format == "cdr") return Serialization::kCdr;
+  if (topic.serialization_format == "ros1") return Serialization::kRos1;
+  throw core::Error("topic " + topic.name,
+                    "type " + topic.type + " has serialization format '" +
+                        topic.serialization_format +
+                        "', expected cdr (ROS 2) or ros1 (ROS 1): the messages cannot be decoded");
+}
 
 MessageContext context_of(const BagMessage& message) {
   MessageContext context;
   context.topic = message.topic ? message.topic->name : std::string("(unknown topic)");
   context.index = message.index;
   context.log_time_ns = message.log_time_ns;
+  if (message.topic) context.serialization = serialization_of(*message.topic);
   return context;
 }
 
@@ -36,13 +47,14 @@ std::size_t point_field_size(std::uint8_t datatype) {
 
 PointCloud2 decode_point_cloud2(const std::uint8_t* data, std::size_t size,
                                 const MessageContext& context) {
-  CdrReader in(data, size, context, "sensor_msgs/msg/PointCloud2");
+  MessageReader in(data, size, context, "sensor_msgs/msg/PointCloud2");
   PointCloud2 cloud;
   cloud.header = in.header("header");
   cloud.height = in.u32("height");
   cloud.width = in.u32("width");
-  // A PointField takes at least 4 (name length) + 4 + 1 + 4 bytes with alignment: 16.
-  const std::uint32_t n_fields = in.sequence_length(16, "fields");
+  // A PointField takes at least 4 (name length) + 4 + 1 + 4 bytes: 13 packed (ROS 1), 16
+  // with CDR's alignment.
+  const std::uint32_t n_fields = in.sequence_length(in.is_ros1() ? 13 : 16, "fields");
   cloud.fields.resize(n_fields);
   for (std::uint32_t i = 0; i < n_fields; ++i) {
     const std::string f = "fields[" + std::to_string(i) + "]";
@@ -61,7 +73,7 @@ PointCloud2 decode_point_cloud2(const std::uint8_t* data, std::size_t size,
 }
 
 Image decode_image(const std::uint8_t* data, std::size_t size, const MessageContext& context) {
-  CdrReader in(data, size, context, "sensor_msgs/msg/Image");
+  MessageReader in(data, size, context, "sensor_msgs/msg/Image");
   Image image;
   image.header = in.header("header");
   image.height = in.u32("height");
@@ -75,7 +87,7 @@ Image decode_image(const std::uint8_t* data, std::size_t size, const MessageCont
 
 CompressedImage decode_compressed_image(const std::uint8_t* data, std::size_t size,
                                         const MessageContext& context) {
-  CdrReader in(data, size, context, "sensor_msgs/msg/CompressedImage");
+  MessageReader in(data, size, context, "sensor_msgs/msg/CompressedImage");
   CompressedImage image;
   image.header = in.header("header");
   image.format = in.string("format");
@@ -85,7 +97,7 @@ CompressedImage decode_compressed_image(const std::uint8_t* data, std::size_t si
 
 CameraInfo decode_camera_info(const std::uint8_t* data, std::size_t size,
                               const MessageContext& context) {
-  CdrReader in(data, size, context, "sensor_msgs/msg/CameraInfo");
+  MessageReader in(data, size, context, "sensor_msgs/msg/CameraInfo");
   CameraInfo info;
   info.header = in.header("header");
   info.height = in.u32("height");
@@ -106,7 +118,7 @@ CameraInfo decode_camera_info(const std::uint8_t* data, std::size_t size,
 }
 
 Imu decode_imu(const std::uint8_t* data, std::size_t size, const MessageContext& context) {
-  CdrReader in(data, size, context, "sensor_msgs/msg/Imu");
+  MessageReader in(data, size, context, "sensor_msgs/msg/Imu");
   Imu imu;
   imu.header = in.header("header");
   imu.orientation.x = in.f64("orientation.x");
@@ -127,7 +139,7 @@ Imu decode_imu(const std::uint8_t* data, std::size_t size, const MessageContext&
 
 std::string decode_string(const std::uint8_t* data, std::size_t size,
                           const MessageContext& context) {
-  CdrReader in(data, size, context, "std_msgs/msg/String");
+  MessageReader in(data, size, context, "std_msgs/msg/String");
   return in.string("data");
 }
 

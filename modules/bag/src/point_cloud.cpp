@@ -202,11 +202,16 @@ CloudPoints extract_points(const PointCloud2& cloud, const MessageContext& conte
     }
     time_kind = TimeKind::kSecondsOffset;
   } else if ((time = ex.find("t")) || (time = ex.find("offset_time"))) {
-    if (!is_unsigned(time->datatype)) {
-      ex.fail("field '" + time->name + "' (nanoseconds after the header stamp) is " +
-              datatype_name(time->datatype) + ", expected UINT8, UINT16 or UINT32");
+    // Integers count nanoseconds (Ouster, Livox); floats seconds (rgbdt's own PCD `t`).
+    if (is_float(time->datatype)) {
+      time_kind = TimeKind::kSecondsOffset;
+    } else if (is_unsigned(time->datatype)) {
+      time_kind = TimeKind::kNanosecondsOffset;
+    } else {
+      ex.fail("field '" + time->name + "' (time after the header stamp) is " +
+              datatype_name(time->datatype) +
+              ", expected UINT8, UINT16 or UINT32 (nanoseconds) or FLOAT32 or FLOAT64 (seconds)");
     }
-    time_kind = TimeKind::kNanosecondsOffset;
   } else if ((time = ex.find("timestamp"))) {
     if (time->datatype != PointField::kFloat64) {
       ex.fail("field 'timestamp' (absolute time) is " + std::string(datatype_name(time->datatype)) +

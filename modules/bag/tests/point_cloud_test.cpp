@@ -90,6 +90,29 @@ TEST(PointCloudExtract, OusterTIsNanosecondsAfterStamp) {
   EXPECT_EQ(points.xyz[2][0], 1.5);
 }
 
+TEST(PointCloudExtract, FloatTIsSecondsAfterStamp) {
+  // rgbdt's own PCD field: float32 seconds.
+  PointCloud2 cloud = empty_cloud(3, 16,
+                                  {{"x", 0, PointField::kFloat32, 1},
+                                   {"y", 4, PointField::kFloat32, 1},
+                                   {"z", 8, PointField::kFloat32, 1},
+                                   {"t", 12, PointField::kFloat32, 1}});
+  for (std::uint32_t i = 0; i < 3; ++i) store<float>(cloud, i, 12, 0.25f * i);
+  const CloudPoints points = extract_points(cloud, kContext);
+  EXPECT_EQ(points.time_field, "t");
+  EXPECT_EQ(points.time_ns,
+            (std::vector<std::int64_t>{kStampNs, kStampNs + 250000000, kStampNs + 500000000}));
+}
+
+TEST(PointCloudExtract, SignedIntegerTIsRejected) {
+  PointCloud2 cloud = empty_cloud(1, 16,
+                                  {{"x", 0, PointField::kFloat32, 1},
+                                   {"y", 4, PointField::kFloat32, 1},
+                                   {"z", 8, PointField::kFloat32, 1},
+                                   {"t", 12, PointField::kInt32, 1}});
+  EXPECT_NE(error_of(cloud).find("field 't'"), std::string::npos) << error_of(cloud);
+}
+
 TEST(PointCloudExtract, LivoxTimestampIsAbsoluteNanosecondsAndLineIsRing) {
   PointCloud2 cloud = empty_cloud(2, 26,
                                   {{"x", 0, PointField::kFloat32, 1},

@@ -1,7 +1,8 @@
 #pragma once
 /// \file
-/// ROS 2 sensor messages as plain structs, decoded from their CDR bytes (as stored in MCAP and
-/// sqlite3 bags). Field names follow the .msg definitions.
+/// ROS sensor messages as plain structs, decoded from their serialized bytes: CDR for ROS 2 (as
+/// stored in MCAP and sqlite3 bags) and the ROS 1 serialization (as stored in ROS 1 bags).
+/// Field names follow the ROS 2 .msg definitions.
 ///
 /// Decoding checks every length against the bytes left before allocating, so a damaged or
 /// hostile message costs at most its own size. Failures throw rgbdt::core::Error whose
@@ -16,14 +17,33 @@
 namespace rgbdt::bag {
 
 struct BagMessage;
+struct TopicInfo;
 
-/// Where a message came from, for error messages. Fill from a BagMessage with `context_of`.
+/// How a message's bytes are laid out.
+enum class Serialization {
+  /// ROS 2 (TopicInfo::serialization_format "cdr"): a 4-byte encapsulation header, then plain
+  /// CDR (XCDR1), little or big endian, primitives aligned to their size, strings with a NUL.
+  kCdr,
+  /// ROS 1 (serialization_format "ros1"): little endian, packed (no alignment), strings and
+  /// sequences with a uint32 length prefix and no NUL, std_msgs/Header with a leading `seq`.
+  kRos1,
+};
+
+/// Where a message came from, for error messages, and how it is serialized. Fill from a
+/// BagMessage with `context_of`.
 struct MessageContext {
   std::string topic;             ///< topic name, or a description such as a file name
   std::uint64_t index = 0;       ///< the message's index in its reader
   std::int64_t log_time_ns = 0;  ///< [ns since epoch]
+  Serialization serialization = Serialization::kCdr;
 };
 
+/// The serialization of a topic, from its serialization_format ("cdr" or "ros1"). Throws
+/// core::Error naming the topic, its type and the format when it is neither.
+Serialization serialization_of(const TopicInfo& topic);
+
+/// The context of a message; its serialization comes from its topic (serialization_of, which
+/// throws for a format the decoders cannot read).
 MessageContext context_of(const BagMessage& message);
 
 /// builtin_interfaces/msg/Time.
@@ -37,6 +57,7 @@ struct Time {
 struct Header {
   Time stamp;
   std::string frame_id;
+  std::uint32_t seq = 0;  ///< ROS 1 only: the publisher's sequence number; 0 for ROS 2
 };
 
 /// sensor_msgs/msg/PointField.
@@ -136,10 +157,12 @@ struct Imu {
   std::array<double, 9> linear_acceleration_covariance{};
 };
 
-// Decoders of a whole CDR message (4-byte encapsulation header, then the fields). Plain CDR
-// (XCDR1), little or big endian, as every ROS 2 middleware writes by default; other
-// encapsulations are rejected by name. Bytes after the last field are ignored (the DDS
-// serializers pad to 4 bytes).
+// Decoders of a whole message in context.serialization. CDR: the 4-byte encapsulation header,
+// then the fields, plain CDR (XCDR1), little or big endian, as every ROS 2 middleware writes by
+// default; other encapsulations are rejected by name; bytes after the last field are ignored
+// (the DDS serializers pad to 4 bytes). ROS 1: the fields packed, little endian; a ROS 1 time
+// after 2038 (seconds above INT32_MAX) does not fit Time and is an error. The types are the
+// same in both: ROS 1's CameraInfo D, K, R, P are d, k, r, p here.
 
 PointCloud2 decode_point_cloud2(const std::uint8_t* data, std::size_t size,
                                 const MessageContext& context);

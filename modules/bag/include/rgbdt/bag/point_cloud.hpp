@@ -33,8 +33,9 @@ struct CloudPoints {
   std::vector<std::uint16_t> ring;  ///< from `ring` (Velodyne, Ouster, Hesai), `line` (Livox)
   /// Absolute time of each point [ns since epoch], from (first match wins):
   ///   `time`        float32/float64 seconds after header.stamp (Velodyne),
-  ///   `t`           unsigned integer nanoseconds after header.stamp (Ouster),
-  ///   `offset_time` unsigned integer nanoseconds after header.stamp (Livox),
+  ///   `t`           unsigned integer nanoseconds after header.stamp (Ouster), or float32/
+  ///                 float64 seconds after header.stamp (rgbdt's own PCD field),
+  ///   `offset_time` unsigned integer nanoseconds after header.stamp (Livox; float: seconds),
   ///   `timestamp`   float64 absolute, nanoseconds (Livox) or seconds (Hesai), see options.
   std::vector<std::int64_t> time_ns;
   std::string time_field;  ///< the field `time_ns` came from, empty when none

@@ -1,0 +1,201 @@
+// rgbdt_import: a ROS bag (ROS 2 .mcap or .db3, ROS 1 .bag) into a calibration or mapping
+// session folder (design.md's file contracts).
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "app_config.hpp"
+#include "import.hpp"
+#include "rgbdt/core/interrupt.hpp"
+#include "rgbdt/core/log.hpp"
+
+namespace core = rgbdt::core;
+namespace imp = rgbdt::import;
+
+namespace {
+
+// "NAME=VALUE" pairs of a repeatable option; throws CLI::ValidationError naming the option.
+std::map<std::string, std::string> name_value_pairs(const std::vector<std::string>& items,
+                                                    const std::string& option) {
+  std::map<std::string, std::string> out;
+  for (const std::string& item : items) {
+    const std::size_t eq = item.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == item.size()) {
+      throw CLI::ValidationError(option, "'" + item + "' is not NAME=VALUE");
+    }
+    if (!out.emplace(item.substr(0, eq), item.substr(eq + 1)).second) {
+      throw CLI::ValidationError(option, "camera " + item.substr(0, eq) + " is given twice");
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "rgbdt_import: a ROS bag into an rgbdt session folder (session.yaml, PCD clouds, PNG "
+      "frames,\n"
+      "camera_info YAML), ready for rgbdt_calibrate or rgbdt_mapper.\n"
+      "Bags: ROS 2 MCAP (.mcap), ROS 2 sqlite3 (.db3, a file or a rosbag2 folder), ROS 1 (.bag).\n"
+      "Messages: sensor_msgs PointCloud2 (any field layout; per-point times of Velodyne, Ouster,\n"
+      "Livox, Hesai), Image (mono8, mono16, 8UC1, 16UC1, rgb8, bgr8, rgba8, bgra8, bayer_*8),\n"
+      "CompressedImage (jpeg, png), CameraInfo (plumb_bob, equidistant), Imu.\n"
+      "\n"
+      "--kind mapping writes clouds/NNNNNN.pcd (x y z, and intensity, ring, t [s from the\n"
+      "cloud's earliest point] when the cloud has them; non-finite points and points at the\n"
+      "origin (the missing-return marker of Hesai and Ouster drivers) dropped) with\n"
+      "clouds/index.csv (time_s = the earliest point's time), <camera>/NNNNNN.png with\n"
+      "<camera>/index.csv (time_s = header stamp), <camera>.yaml, session.yaml, and with --imu\n"
+      "imu.csv (time_s,wx,wy,wz,ax,ay,az; rgbdt_mapper does not read IMU samples yet, so\n"
+      "session.yaml does not name it).\n"
+      "--kind calibration finds the intervals where the board is held still: the first camera's\n"
+      "(or --still-camera's) consecutive frames differ by less than --still-threshold; runs of at\n"
+      "least --min-still-frames frames are kept. Each kept interval becomes a view: every LIDAR\n"
+      "cloud inside it accumulated into clouds/NNN.pcd (non-repetitive LIDARs need it) and each\n"
+      "camera's frame nearest its middle as <camera>/NNN.png. One line per interval says whether\n"
+      "it was kept and why not. Without --camera, the imported time range is one view (for\n"
+      "rgbdt_calibrate --lidar-only).\n"
+      "Times are header stamps (the log time when a stamp is 0). The session is written to a\n"
+      "hidden sibling folder and renamed to --out at the end: a failed or interrupted import\n"
+      "leaves no session behind. Progress goes to stderr at most once a second.\n"
+      "\n"
+      "Examples:\n"
+      "  rgbdt_import run.mcap --out street --kind mapping --lidar /velodyne_points \\\n"
+      "      --camera rgb=/camera/image_raw --camera thermal=/flir/image_raw/compressed \\\n"
+      "      --imu /imu/data --start 10 --end 70\n"
+      "  rgbdt_import board.bag --out calib --kind calibration --lidar /lidar_points \\\n"
+      "      --camera rgb=/camera/image_raw --intrinsics rgb=rgb.yaml \\\n"
+      "      --target '{type: circle_hole, radius: 0.12, holes: [[-0.25, 0.2], [0.25, 0.2], "
+      "[-0.25, -0.2], [0.25, -0.2]]}'\n"
+      "\n"
+      "Exit codes: 0 session written; 1 bad input (a topic not in the bag, a type or encoding\n"
+      "that cannot be read, a damaged message: named with the topic and the bag); 130\n"
+      "interrupted."};
+  rgbdt::apps::add_config_option(app, argc, argv);
+  imp::ImportOptions options;
+  std::string bag, out, kind;
+  std::vector<std::string> cameras, camera_infos, intrinsics;
+  double start_s = 0, end_s = 0;
+  bool verbose = false;
+  app.add_option("BAG", bag, "the bag: a .mcap, .db3 or .bag file, or a rosbag2 folder")
+      ->required();
+  app.add_option("--out", out, "the session folder to write (must not exist, or be empty)")
+      ->required();
+  app.add_option("--kind", kind,
+                 "calibration (still intervals become views) or mapping (every message)")
+      ->required()
+      ->check(CLI::IsMember({"calibration", "mapping"}));
+  app.add_option("--lidar", options.lidar_topic, "the LIDAR's sensor_msgs/PointCloud2 topic")
+      ->required();
+  app.add_option("--camera", cameras,
+                 "NAME=TOPIC: a camera's Image or CompressedImage topic (repeatable); NAME is the "
+                 "session's camera name, e.g. rgb or thermal");
+  app.add_option(
+      "--camera-info", camera_infos,
+      "NAME=TOPIC: the camera's CameraInfo topic (repeatable); default: the image topic's "
+      "sibling camera_info (/cam/image_raw[/compressed] -> /cam/camera_info). The first "
+      "message becomes <NAME>.yaml");
+  app.add_option(
+      "--intrinsics", intrinsics,
+      "NAME=FILE: a camera_info YAML to copy as <NAME>.yaml instead of reading CameraInfo "
+      "(repeatable)");
+  app.add_option("--imu", options.imu_topic,
+                 "a sensor_msgs/Imu topic, written to imu.csv (mapping)");
+  auto* start = app.add_option("--start", start_s,
+                               "import from this many seconds after the bag's first message");
+  auto* end = app.add_option("--end", end_s,
+                             "import up to this many seconds after the bag's first message");
+  app.add_option("--target", options.target_yaml,
+                 "calibration: the board as session.yaml's target entry, e.g. '{type: circle_hole, "
+                 "radius: 0.30}' or with board_size: [w, h] and holes: [[x, y], ...] [m] (required "
+                 "for --kind calibration)");
+  app.add_option("--still-threshold", options.still_threshold,
+                 "calibration: largest mean absolute grey difference between consecutive frames "
+                 "(downscaled to 160 px wide; 8-bit levels, 16-bit frames scaled by the first "
+                 "frame's range) that still counts as still; raise it for noisy cameras")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--min-still-frames", options.min_still_frames,
+                 "calibration: still runs of fewer frames are dropped")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  app.add_option(
+      "--still-camera", options.still_camera,
+      "calibration: the camera whose frames decide stillness (default: the first --camera)");
+  app.add_option("--max-view-points", options.max_view_points,
+                 "calibration: the most points one view may accumulate (a bound on memory)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_flag("-v,--verbose", verbose, "print library log messages (debug level)");
+  try {
+    app.parse(argc, argv);
+    options.bag = bag;
+    options.out = out;
+    options.kind =
+        kind == "calibration" ? imp::SessionKind::kCalibration : imp::SessionKind::kMapping;
+    if (*start) options.start_s = start_s;
+    if (*end) options.end_s = end_s;
+    const auto camera_map = name_value_pairs(cameras, "--camera");
+    const auto info_map = name_value_pairs(camera_infos, "--camera-info");
+    const auto intrinsics_map = name_value_pairs(intrinsics, "--intrinsics");
+    for (const std::string& item : cameras) {
+      imp::CameraSource source;
+      source.name = item.substr(0, item.find('='));
+      source.topic = camera_map.at(source.name);
+      if (info_map.count(source.name)) source.info_topic = info_map.at(source.name);
+      if (intrinsics_map.count(source.name)) source.intrinsics = intrinsics_map.at(source.name);
+      if (!source.info_topic.empty() && !source.intrinsics.empty()) {
+        throw CLI::ValidationError(
+            "--intrinsics", "camera " + source.name + " has both --camera-info and --intrinsics");
+      }
+      options.cameras.push_back(source);
+    }
+    for (const auto* map : {&info_map, &intrinsics_map}) {
+      for (const auto& [name, value] : *map) {
+        if (!camera_map.count(name)) {
+          throw CLI::ValidationError(map == &info_map ? "--camera-info" : "--intrinsics",
+                                     "camera " + name + " is not named by --camera");
+        }
+      }
+    }
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  core::set_log_sink(core::stderr_log_sink);
+  core::set_log_level(verbose ? core::LogLevel::kDebug : core::LogLevel::kWarning);
+  core::install_interrupt_handler();
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    const imp::ImportResult r = imp::import_bag(options, stdout);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::string frames;
+    for (const auto& [name, n] : r.frames)
+      frames += ", " + std::to_string(n) + " " + name + " frames";
+    if (options.kind == imp::SessionKind::kMapping) {
+      std::printf("mapping session: %zu messages read, %zu clouds%s%s -> %s (%.1f s)\n", r.messages,
+                  r.clouds, frames.c_str(),
+                  options.imu_topic.empty()
+                      ? ""
+                      : (", " + std::to_string(r.imu_samples) + " IMU samples").c_str(),
+                  out.c_str(), seconds);
+    } else {
+      std::printf(
+          "calibration session: %zu messages read, %zu views from %zu clouds -> %s (%.1f s)\n",
+          r.messages, r.views, r.clouds, out.c_str(), seconds);
+    }
+  } catch (const imp::Interrupted&) {
+    std::fprintf(stderr, "rgbdt_import: interrupted; no session was written\n");
+    return 130;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rgbdt_import: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
