@@ -128,6 +128,125 @@ void write_report(const fs::path& dir, const ct::IntrinsicsResult& r, const std:
 
 }  // namespace
 
+/// The images of `dir` (png, jpg, tif, bmp; any case), in name order.
+std::vector<fs::path> list_images(const std::string& dir) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+    if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" || ext == ".bmp") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+/// One image read and searched for the pattern; the reason when it cannot be used.
+struct ImageDetection {
+  cv::Mat image;
+  ct::PatternDetection detection;
+};
+
+ImageDetection detect_in_file(const fs::path& file, const ct::PatternSpec& pattern) {
+  // PNG and JPEG headers are checked before decoding, so a file claiming a huge size is
+  // refused before OpenCV allocates for it (other formats go to OpenCV directly).
+  std::string header_problem;
+  const std::string ext = fs::path(file).extension().string();
+  if (ext == ".png" || ext == ".PNG" || ext == ".jpg" || ext == ".jpeg" || ext == ".JPG" || ext == ".JPEG") {
+    try {
+      (void)rgbdt::core::read_image_header(file.string());
+    } catch (const std::exception& e) {
+      header_problem = e.what();
+    }
+  }
+  ImageDetection r;
+  if (header_problem.empty()) r.image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  if (!header_problem.empty()) {
+    r.detection.reason = header_problem;
+  } else if (r.image.empty()) {
+    r.detection.reason = "cannot read " + file.string() + " (expected an image: png, jpg, tif, bmp)";
+  } else {
+    r.detection = ct::detect_pattern(r.image, pattern);
+  }
+  return r;
+}
+
+/// The views of one image size: that of the largest group of images where the pattern was
+/// found (a stray image of another size does not decide it). The others are named in
+/// `skipped` with their size.
+struct SizeGroup {
+  cv::Size size;  ///< empty when the pattern was found in no image
+  std::vector<cv::Mat> images;
+  std::vector<ct::PatternDetection> detections;
+  std::vector<std::string> names, skipped;
+};
+
+SizeGroup largest_size_group(const std::vector<fs::path>& files, const std::vector<ImageDetection>& all) {
+  std::map<std::pair<int, int>, int> groups;
+  for (const auto& d : all)
+    if (d.detection.ok) ++groups[{d.image.cols, d.image.rows}];
+  SizeGroup g;
+  int best = 0;
+  for (const auto& [wh, count] : groups)
+    if (count > best) {
+      best = count;
+      g.size = cv::Size(wh.first, wh.second);
+    }
+  for (std::size_t k = 0; k < files.size(); ++k) {
+    const std::string name = files[k].filename().string();
+    const cv::Mat& img = all[k].image;
+    if (!img.empty() && !g.size.empty() && img.size() != g.size) {
+      const std::string why = "size " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
+                              " differs from the " + std::to_string(g.size.width) + "x" + std::to_string(g.size.height) +
+                              " of the " + std::to_string(best) + " image(s) with the pattern";
+      std::cout << "  skipped " << name << ": " << why << "\n";
+      g.skipped.push_back(name + ": " + why);
+      continue;
+    }
+    g.images.push_back(img);
+    g.detections.push_back(all[k].detection);
+    g.names.push_back(name);
+  }
+  return g;
+}
+
+/// Plain OpenCV on the images as stored (8-bit ones only): findChessboardCorners and
+/// calibrateCamera with default flags, as one line for the report.
+std::string plain_opencv_baseline(const std::vector<cv::Mat>& images, const ct::PatternSpec& pattern, cv::Size size) {
+  int plain = 0;
+  std::vector<std::vector<cv::Point2f>> plain_points;
+  for (const cv::Mat& img : images) {
+    if (img.depth() != CV_8U) continue;
+    std::vector<cv::Point2f> p;
+    cv::Mat grey = img;
+    if (img.channels() == 3) cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+    if (cv::findChessboardCorners(grey, cv::Size(pattern.cols, pattern.rows), p)) {
+      ++plain;
+      plain_points.push_back(p);
+    }
+  }
+  std::ostringstream s;
+  s << "findChessboardCorners found " << plain << "/" << images.size();
+  if (plain >= 3) {
+    std::vector<std::vector<cv::Point3f>> obj(plain_points.size(), pattern.object_points());
+    cv::Mat K, D;
+    std::vector<cv::Mat> rv, tv;
+    const double rms = cv::calibrateCamera(obj, plain_points, size, K, D, rv, tv);
+    s << ", calibrateCamera (default flags) RMS " << rms << " px, fx " << K.at<double>(0, 0) << ", fy " << K.at<double>(1, 1);
+  }
+  return s.str();
+}
+
+void print_result(const ct::IntrinsicsResult& result) {
+  std::cout << std::setprecision(6) << "RMS " << result.rms_px << " px, terms: " << result.distortion_terms
+            << ", coverage " << result.coverage * 100 << " %\n";
+  for (std::size_t k = 0; k < result.parameters.size(); ++k) {
+    std::cout << "  " << result.parameter_names[k] << " = " << result.parameters[k] << " +- " << result.std_devs[k] << "\n";
+  }
+  for (const auto& v : result.views) {
+    if (!v.used && !v.reason.empty()) std::cout << "  rejected " << v.name << ": " << v.reason << "\n";
+  }
+}
+
 int main(int argc, char** argv) {
   CLI::App app{
       "Intrinsic calibration of an RGB or thermal camera from images of a checkerboard or a circle grid.\n"
@@ -172,13 +291,7 @@ int main(int argc, char** argv) {
     ct::IntrinsicsOptions options;
     options.model = rgbdt::core::distortion_model_from_string(model_name);
     options.select_distortion = !all_terms;
-    std::vector<fs::path> files;
-    for (const auto& e : fs::directory_iterator(images_dir)) {
-      std::string ext = e.path().extension().string();
-      std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-      if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" || ext == ".bmp") files.push_back(e.path());
-    }
-    std::sort(files.begin(), files.end());
+    const std::vector<fs::path> files = list_images(images_dir);
     if (files.empty()) {
       std::cerr << "error: no images in " << images_dir << "\n";
       return 1;
@@ -196,102 +309,32 @@ int main(int argc, char** argv) {
     if (!report_dir.empty()) rgbdt::core::remove_stale_output((fs::path(report_dir) / "report.md").string());
     rgbdt::core::install_interrupt_handler();
     // Detection on every image; the sizes are grouped afterwards.
-    std::vector<cv::Mat> all_images;
-    std::vector<ct::PatternDetection> all_det;
+    std::vector<ImageDetection> all;
     for (const auto& file : files) {
       if (rgbdt::core::interrupted()) {
-        std::cerr << "interrupted after " << all_det.size() << " of " << files.size() << " images; nothing was written\n";
+        std::cerr << "interrupted after " << all.size() << " of " << files.size() << " images; nothing was written\n";
         return 130;
       }
-      // PNG and JPEG headers are checked before decoding, so a file claiming a huge size is
-      // refused before OpenCV allocates for it (other formats go to OpenCV directly).
-      std::string header_problem;
-      const std::string ext = fs::path(file).extension().string();
-      if (ext == ".png" || ext == ".PNG" || ext == ".jpg" || ext == ".jpeg" || ext == ".JPG" || ext == ".JPEG") {
-        try {
-          (void)rgbdt::core::read_image_header(file.string());
-        } catch (const std::exception& e) {
-          header_problem = e.what();
-        }
-      }
-      cv::Mat img;
-      if (header_problem.empty()) img = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-      ct::PatternDetection d;
-      if (!header_problem.empty()) {
-        d.reason = header_problem;
-      } else if (img.empty()) {
-        d.reason = "cannot read " + file.string() + " (expected an image: png, jpg, tif, bmp)";
-      } else {
-        d = ct::detect_pattern(img, pattern);
-      }
+      all.push_back(detect_in_file(file, pattern));
+      const ct::PatternDetection& d = all.back().detection;
       std::cout << file.filename().string() << ": " << (d.ok ? "found (" + d.method + ")" : d.reason) << "\n";
       std::cout.flush();
-      all_images.push_back(img);
-      all_det.push_back(d);
     }
-    // The image size: that of the largest group of images where the pattern was found (a
-    // stray image of another size does not decide it).
-    std::map<std::pair<int, int>, int> groups;
-    for (std::size_t k = 0; k < files.size(); ++k)
-      if (all_det[k].ok) ++groups[{all_images[k].cols, all_images[k].rows}];
-    cv::Size size;
-    int best = 0;
-    for (const auto& [wh, count] : groups)
-      if (count > best) {
-        best = count;
-        size = cv::Size(wh.first, wh.second);
-      }
-    std::vector<cv::Mat> images;
-    std::vector<ct::PatternDetection> det;
-    std::vector<std::string> names, skipped;
-    for (std::size_t k = 0; k < files.size(); ++k) {
-      const std::string name = files[k].filename().string();
-      const cv::Mat& img = all_images[k];
-      if (!img.empty() && !size.empty() && img.size() != size) {
-        const std::string why = "size " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
-                                " differs from the " + std::to_string(size.width) + "x" + std::to_string(size.height) +
-                                " of the " + std::to_string(best) + " image(s) with the pattern";
-        std::cout << "  skipped " << name << ": " << why << "\n";
-        skipped.push_back(name + ": " + why);
-        continue;
-      }
-      images.push_back(img);
-      det.push_back(all_det[k]);
-      names.push_back(name);
-    }
+    SizeGroup group = largest_size_group(files, all);
+    all.clear();
+    const cv::Size size = group.size;
+    const std::vector<cv::Mat>& images = group.images;
+    const std::vector<ct::PatternDetection>& det = group.detections;
+    const std::vector<std::string>& skipped = group.skipped;
     if (size.empty()) {
       std::cerr << "error: the " << pattern.cols << "x" << pattern.rows << " " << pattern_name
                 << " pattern was found in none of the " << files.size() << " images of " << images_dir << "\n";
       return 1;
     }
-    int plain = 0;
-    std::vector<std::vector<cv::Point2f>> plain_points;
-    if (with_baseline && pattern.type == ct::PatternType::kCheckerboard) {
-      // Baseline: plain OpenCV on the images as stored (8-bit ones only).
-      for (const cv::Mat& img : images) {
-        if (img.depth() != CV_8U) continue;
-        std::vector<cv::Point2f> p;
-        cv::Mat grey = img;
-        if (img.channels() == 3) cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
-        if (cv::findChessboardCorners(grey, cv::Size(cols, rows), p)) {
-          ++plain;
-          plain_points.push_back(p);
-        }
-      }
-    }
-    const auto result = ct::calibrate_intrinsics(det, names, size, pattern, options);
+    const auto result = ct::calibrate_intrinsics(det, group.names, size, pattern, options);
     std::string baseline;
     if (with_baseline && pattern.type == ct::PatternType::kCheckerboard) {
-      std::ostringstream s;
-      s << "findChessboardCorners found " << plain << "/" << images.size();
-      if (plain >= 3) {
-        std::vector<std::vector<cv::Point3f>> obj(plain_points.size(), pattern.object_points());
-        cv::Mat K, D;
-        std::vector<cv::Mat> rv, tv;
-        const double rms = cv::calibrateCamera(obj, plain_points, size, K, D, rv, tv);
-        s << ", calibrateCamera (default flags) RMS " << rms << " px, fx " << K.at<double>(0, 0) << ", fy " << K.at<double>(1, 1);
-      }
-      baseline = s.str();
+      baseline = plain_opencv_baseline(images, pattern, size);
     }
     int found = 0;
     for (const auto& d : det) found += d.ok ? 1 : 0;
@@ -306,14 +349,7 @@ int main(int argc, char** argv) {
     const std::string verdict = verdict_problem(result, size, max_rms);
     auto intrinsics = result.intrinsics;
     intrinsics.camera_name = camera_name;
-    std::cout << std::setprecision(6) << "RMS " << result.rms_px << " px, terms: " << result.distortion_terms
-              << ", coverage " << result.coverage * 100 << " %\n";
-    for (std::size_t k = 0; k < result.parameters.size(); ++k) {
-      std::cout << "  " << result.parameter_names[k] << " = " << result.parameters[k] << " +- " << result.std_devs[k] << "\n";
-    }
-    for (const auto& v : result.views) {
-      if (!v.used && !v.reason.empty()) std::cout << "  rejected " << v.name << ": " << v.reason << "\n";
-    }
+    print_result(result);
     if (rgbdt::core::interrupted()) {
       std::cerr << "interrupted before writing; nothing was written\n";
       return 130;
