@@ -6,11 +6,14 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <regex>
 #include <sstream>
 
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/camera_info.hpp"
+#include "rgbdt/core/extrinsics.hpp"
 #include "rgbdt/core/session.hpp"
+#include "rgbdt/core/transform.hpp"
 
 namespace {
 
@@ -177,6 +180,109 @@ TEST(RgbdtCalibrate, AFailingCameraIsReportedAndTheOthersAreWritten) {
   const std::string report = read_text(out + "/report.md");
   EXPECT_NE(report.find("**FAILED for 1 of 2 camera(s)**"), std::string::npos) << report;
   EXPECT_NE(report.find("- **thermal**: "), std::string::npos) << report;
+  // The ROS outputs hold the calibrated camera only, in the default frames.
+  const std::string launch = read_text(out + "/static_transforms.launch.py");
+  EXPECT_NE(launch.find("'--frame-id', 'lidar', '--child-frame-id', 'rgb'"), std::string::npos)
+      << launch;
+  EXPECT_EQ(launch.find("thermal"), std::string::npos) << launch;
+  const std::string urdf = read_text(out + "/urdf_joints.xml");
+  EXPECT_NE(urdf.find("<child link=\"rgb\"/>"), std::string::npos) << urdf;
+  EXPECT_EQ(urdf.find("thermal"), std::string::npos) << urdf;
+}
+
+// The numbers of one --flag in the launch file's arguments of the Node whose child frame is
+// `child`: e.g. "'--x', '0.123'".
+double launch_argument(const std::string& launch, const std::string& child,
+                       const std::string& flag) {
+  const size_t end = launch.find("'--child-frame-id', '" + child + "'");
+  if (end == std::string::npos) {
+    ADD_FAILURE() << "no node with child frame " << child << " in\n" << launch;
+    return 0.0;
+  }
+  const size_t begin = launch.rfind("Node(", end);
+  const std::string node = launch.substr(begin, end - begin);
+  std::smatch m;
+  if (!std::regex_search(node, m, std::regex("'" + flag + "', '([^']+)'"))) {
+    ADD_FAILURE() << "no " << flag << " in\n" << node;
+    return 0.0;
+  }
+  return std::stod(m[1]);
+}
+
+// static_transforms.launch.py and urdf_joints.xml hold T_lidar_camera, the inverse of the
+// YAML's T_camera_lidar, in the frames of --frames; a FAILed camera is in neither. Python
+// parses the launch file, and the URDF is well-formed XML.
+TEST(RgbdtCalibrate, RosOutputsHoldTheInverseOfTheYamlInTheGivenFrames) {
+  const std::string session = simulate_session("rgbdt_calibrate_ros_outputs");
+  const std::string out = session + "/out";
+  {
+    std::ofstream f(session + "/away.yaml");
+    f << "parent_frame: thermal\nchild_frame: lidar\ntranslation: [0, 0, 0]\n"
+         "rotation_quaternion: [0, 1, 0, 0]\n";
+  }
+  const AppRun bad = run_app(session + " --out " + out + " --frames lidar=velodyne,left=cam");
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find("--frames: 'left' is neither lidar nor a camera of the session"),
+            std::string::npos)
+      << bad.output;
+  const AppRun r =
+      run_app(session + " --out " + out + " --seeds none --initial " + session +
+              "/away.yaml --frames lidar=velodyne,rgb=camera_rgb_optical_frame,thermal=flir_link");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  ASSERT_TRUE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
+  ASSERT_FALSE(fs::exists(out + "/extrinsics_thermal.yaml")) << r.output;
+  const Eigen::Isometry3d T_lidar_camera =
+      rgbdt::core::read_extrinsics(out + "/extrinsics_rgb.yaml").T_parent_child.inverse();
+
+  const std::string launch_path = out + "/static_transforms.launch.py";
+  const std::string launch = read_text(launch_path);
+  EXPECT_NE(launch.find("package='tf2_ros'"), std::string::npos) << launch;
+  EXPECT_NE(launch.find("executable='static_transform_publisher'"), std::string::npos) << launch;
+  EXPECT_NE(launch.find("'--frame-id', 'velodyne', '--child-frame-id', 'camera_rgb_optical_frame'"),
+            std::string::npos)
+      << launch;
+  EXPECT_EQ(launch.find("flir_link"), std::string::npos) << launch;
+  EXPECT_EQ(launch.find("thermal"), std::string::npos) << launch;
+  const std::string child = "camera_rgb_optical_frame";
+  const Eigen::Vector3d t(launch_argument(launch, child, "--x"),
+                          launch_argument(launch, child, "--y"),
+                          launch_argument(launch, child, "--z"));
+  const Eigen::Quaterniond q(
+      launch_argument(launch, child, "--qw"), launch_argument(launch, child, "--qx"),
+      launch_argument(launch, child, "--qy"), launch_argument(launch, child, "--qz"));
+  EXPECT_LT((t - T_lidar_camera.translation()).norm(), 1e-6) << launch;
+  EXPECT_NEAR(q.norm(), 1.0, 1e-6);
+  EXPECT_LT((q.toRotationMatrix() - T_lidar_camera.linear()).cwiseAbs().maxCoeff(), 1e-6) << launch;
+  const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+  EXPECT_EQ(
+      std::system(
+          (python + " -c \"import ast; ast.parse(open('" + launch_path + "').read())\"").c_str()),
+      0)
+      << launch;
+
+  const std::string urdf_path = out + "/urdf_joints.xml";
+  const std::string urdf = read_text(urdf_path);
+  EXPECT_EQ(std::system(
+                (python + " -c \"import xml.etree.ElementTree as E; E.parse('" + urdf_path + "')\"")
+                    .c_str()),
+            0)
+      << urdf;
+  EXPECT_EQ(urdf.find("flir_link"), std::string::npos) << urdf;
+  std::smatch m;
+  const std::regex joint(
+      "<joint name=\"[^\"]+\" type=\"fixed\">\\s*<parent link=\"velodyne\"/>\\s*<child "
+      "link=\"camera_rgb_optical_frame\"/>\\s*<origin xyz=\"(\\S+) (\\S+) (\\S+)\" rpy=\"(\\S+) "
+      "(\\S+) (\\S+)\"/>");
+  ASSERT_TRUE(std::regex_search(urdf, m, joint)) << urdf;
+  const Eigen::Vector3d xyz(std::stod(m[1]), std::stod(m[2]), std::stod(m[3]));
+  const Eigen::Matrix3d R =
+      rgbdt::core::rotation_from_rpy(std::stod(m[4]), std::stod(m[5]), std::stod(m[6]));
+  EXPECT_LT((xyz - T_lidar_camera.translation()).norm(), 1e-6) << urdf;
+  EXPECT_LT((R - T_lidar_camera.linear()).cwiseAbs().maxCoeff(), 1e-6) << urdf;
+  size_t joints = 0;
+  for (size_t p = urdf.find("<joint "); p != std::string::npos; p = urdf.find("<joint ", p + 1))
+    ++joints;
+  EXPECT_EQ(joints, 1u) << urdf;
 }
 
 // A camera name far longer than any fixed buffer: the overlays carry the whole name.

@@ -14,20 +14,21 @@
 #include <sstream>
 
 #include "app_config.hpp"
+#include "detections_table.hpp"
+#include "lidar_only.hpp"
+#include "preflight.hpp"
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
 #include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/log.hpp"
 #include "rgbdt/core/output.hpp"
-#include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/core/session.hpp"
+#include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/extrinsics/edge_alignment.hpp"
 #include "rgbdt/extrinsics/report.hpp"
 #include "rgbdt/extrinsics/verdict.hpp"
-#include "detections_table.hpp"
-#include "lidar_only.hpp"
-#include "preflight.hpp"
+#include "ros_outputs.hpp"
 #include "session_views.hpp"
 
 namespace fs = std::filesystem;
@@ -118,7 +119,8 @@ int main(int argc, char** argv) {
   CLI::App app{
       "Calibrates the extrinsics between the LIDAR and the cameras of a calibration session by\n"
       "aligning the edges of the circle target in the LIDAR clouds with its edges in the images\n"
-      "(paper Sec. 3.6, Eq. (2)). Targets are found automatically; seeds in session.yaml are hints\n"
+      "(paper Sec. 3.6, Eq. (2)). Targets are found automatically; seeds in session.yaml are "
+      "hints\n"
       "(a seeded detection that fails falls back to the automatic one, and the report says so).\n"
       "No initial guess is needed. Every file the session names is checked first; all problems\n"
       "are listed at once (exit 1). Each camera is calibrated independently and judged:\n"
@@ -134,18 +136,35 @@ int main(int argc, char** argv) {
       "  extrinsics_<camera>.rejected.yaml  the estimate of a FAIL, for diagnosis only (never\n"
       "                                     used for anything else)\n"
       "  extrinsics_thermal_rgb.yaml        when both rgb and thermal pass or warn\n"
+      "  static_transforms.launch.py        ROS 2 launch file: one tf2_ros "
+      "static_transform_publisher\n"
+      "                                     per PASS/WARN camera, T_lidar_camera (the inverse of "
+      "the\n"
+      "                                     YAML's), parent = the LIDAR frame, child = the "
+      "camera's\n"
+      "  urdf_joints.xml                    the same as URDF: one fixed <joint> per PASS/WARN "
+      "camera\n"
+      "                                     (origin xyz rpy = T_lidar_camera); both only when a\n"
+      "                                     camera passed or warned. Frames: lidar and the "
+      "camera's\n"
+      "                                     name, as in the YAML, or as --frames renames them\n"
       "  overlay_<camera>_<view>.png        image edges blue, LIDAR circle before red, after\n"
-      "                                     green; a red 'REJECTED: reason' banner on failed views\n"
+      "                                     green; a red 'REJECTED: reason' banner on failed "
+      "views\n"
       "  detections_<camera>.csv            one row per hole and view: LIDAR centre x y z [m],\n"
       "                                     LIDAR radius [m] and whether measured, image ellipse\n"
       "                                     centre u v, axes and angle [px, deg], the LIDAR\n"
       "                                     detector's method, the view's residual RMS and use\n"
-      "  report.md                          last: verdict with its reasons and numbers per camera,\n"
-      "                                     estimate, covariance, per-view residuals, errors against\n"
+      "  report.md                          last: verdict with its reasons and numbers per "
+      "camera,\n"
+      "                                     estimate, covariance, per-view residuals, errors "
+      "against\n"
       "                                     ground_truth.yaml if the session has one.\n"
       "--lidar-only detects the target in every cloud, no camera needed (camera files may be\n"
       "absent), and writes detections_lidar.csv (camera columns empty) and report.md; exit 0\n"
       "when the target was found in every view, 2 when it was missed in some.\n"
+      "Example: rgbdt_calibrate calib --out result --frames "
+      "lidar=velodyne,rgb=camera_optical_frame\n"
       "Exit codes: 0 every camera PASS or WARN; 1 bad input; 2 a camera FAILed or was not\n"
       "calibrated (named in report.md and on stderr); 130 interrupted (no report.md)."};
   rgbdt::apps::add_config_option(app, argc, argv);
@@ -154,6 +173,7 @@ int main(int argc, char** argv) {
   std::string seeds = "all";
   double max_translation_m = ext::VerdictOptions{}.max_translation_m;
   bool lidar_only = false;
+  std::string frames_text;
   app.add_option("SESSION_DIR", session_dir, "calibration session folder (with session.yaml)")->required();
   app.add_option("--out", out_dir, "output folder (created)")->required();
   app.add_option("--camera", camera_choice, "camera to calibrate: a camera name of the session or 'all'")
@@ -177,6 +197,10 @@ int main(int argc, char** argv) {
                  "the camera FAILs")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--frames", frames_text,
+                 "frame ids of static_transforms.launch.py and urdf_joints.xml: lidar=FRAME and "
+                 "CAMERA=FRAME, comma-separated, any subset, e.g. lidar=velodyne,rgb=camera_link "
+                 "(default: lidar and each camera's name; the extrinsics YAML keeps those)");
   app.add_flag("--lidar-only", lidar_only,
                "detect the target in the clouds only: detections_lidar.csv and report.md, no camera");
   app.add_flag("-v,--verbose", verbose, "print library log messages (debug level)");
@@ -222,6 +246,10 @@ int main(int argc, char** argv) {
     }
     std::map<std::string, core::PinholeCamera> cameras;
     for (const auto& [name, in] : intrinsics) cameras.emplace(name, core::PinholeCamera(in));
+    std::vector<std::string> camera_names;
+    for (const auto& [name, entry] : session.cameras) camera_names.push_back(name);
+    const rgbdt::calibrate::RosFrames ros_frames =
+        rgbdt::calibrate::parse_ros_frames(frames_text, camera_names);
     std::optional<core::Extrinsics> initial;
     if (!initial_path.empty()) initial = core::read_extrinsics(initial_path);
 
@@ -236,6 +264,10 @@ int main(int argc, char** argv) {
     const fs::path out = fs::path(out_dir);
     const std::string report_path = (out / "report.md").string();
     core::remove_stale_output(report_path);
+    const std::string launch_path = (out / "static_transforms.launch.py").string();
+    const std::string urdf_path = (out / "urdf_joints.xml").string();
+    core::remove_stale_output(launch_path);
+    core::remove_stale_output(urdf_path);
     for (const auto& [name, camera] : cameras) {
       core::remove_stale_output((out / ("extrinsics_" + name + ".yaml")).string());
       core::remove_stale_output((out / ("extrinsics_" + name + ".rejected.yaml")).string());
@@ -428,6 +460,20 @@ int main(int argc, char** argv) {
       for (const auto& w : written) std::fprintf(stderr, " %s", w.c_str());
       std::fprintf(stderr, "%s (the run is not complete)\n", written.empty() ? " nothing" : "");
       return 130;
+    }
+    // The calibrated cameras for ROS (before report.md, which marks the run complete).
+    if (!results.empty()) {
+      std::vector<rgbdt::calibrate::RosCamera> ros_cameras;
+      for (const auto& [name, r] : results) ros_cameras.push_back({name, r.T_camera_lidar});
+      core::write_file_atomic(
+          launch_path, rgbdt::calibrate::format_static_transforms_launch(ros_cameras, ros_frames));
+      core::write_file_atomic(urdf_path,
+                              rgbdt::calibrate::format_urdf_joints(ros_cameras, ros_frames));
+      std::printf("wrote %s\nwrote %s\n", launch_path.c_str(), urdf_path.c_str());
+      report << "## ROS\n\n`static_transforms.launch.py` and `urdf_joints.xml`: T_lidar_camera of";
+      for (const auto& c : ros_cameras)
+        report << " " << c.name << " (" << ros_frames.camera(c.name) << ")";
+      report << ", parent frame " << ros_frames.lidar << ".\n\n";
     }
     std::ostringstream doc;
     doc << "# rgbdt_calibrate report\n\nSession: `" << session.directory << "`, method: " << method_name << ", "

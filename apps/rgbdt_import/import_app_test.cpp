@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "convert.hpp"
+#include "import_test_util.hpp"
 #include "rgbdt/bag/messages.hpp"
 #include "rgbdt/bag/point_cloud.hpp"
 #include "rgbdt/bag/reader.hpp"
@@ -354,80 +355,27 @@ TEST(ImportStillIntervals, MissingCameraInfoNamesTheSiblingTopic) {
 // A simulated mapping session written to a ROS 1 bag by the real ROS 1 Python libraries
 // (tests/fixtures/write_ros1_bag.py), imported back: the same points and pixels.
 
-AppRun run_command(const std::string& command, const fs::path& log) {
-  const int status = std::system((command + " > " + log.string() + " 2>&1").c_str());
-  std::ifstream f(log);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
-}
-
 TEST(ImportRos1Fixture, SimMappingSessionRoundTripsThroughARos1Bag) {
   const fs::path dir = test::temp_dir("work");
   const fs::path sim = dir / "sim", bag = dir / "sim.bag", out = dir / "imported";
   // 1.5 s: two tilts (0.6 s each), three frames per camera; supersampling 1 for speed.
-  AppRun run = run_command(test::built_program("rgbdt_sim") + " mapping --out " + sim.string() +
-                               " --duration 1.5 --rgb-fps 2 --thermal-fps 2 --supersampling 1 -q",
-                           dir / "sim.log");
+  test_util::CommandRun run =
+      test_util::run_command(test::built_program("rgbdt_sim") + " mapping --out " + sim.string() +
+                                 " --duration 1.5 --rgb-fps 2 --thermal-fps 2 --supersampling 1 -q",
+                             dir / "sim.log");
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  // Debian's ROS 1 Python modules live in /usr/lib/python3/dist-packages: the system Python.
-  const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-  run = run_command(python + " " + RGBDT_SOURCE_DIR + "/tests/fixtures/write_ros1_bag.py " +
-                        sim.string() + " " + bag.string(),
-                    dir / "fixture.log");
+  run = test_util::run_command(
+      test_util::ros1_fixture("write_ros1_bag.py") + " " + sim.string() + " " + bag.string(),
+      dir / "fixture.log");
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  run = run_import(bag.string() + " --out " + out.string() +
-                       " --kind mapping --lidar /lidar/points --camera rgb=/rgb/image_raw"
-                       " --camera thermal=/thermal/image_raw",
-                   dir / "import.log");
-  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const AppRun imported =
+      run_import(bag.string() + " --out " + out.string() +
+                     " --kind mapping --lidar /lidar/points --camera rgb=/rgb/image_raw"
+                     " --camera thermal=/thermal/image_raw",
+                 dir / "import.log");
+  ASSERT_EQ(imported.exit_code, 0) << imported.output;
 
-  const core::MappingSession original = core::read_mapping_session(sim.string());
-  const core::MappingSession imported = core::read_mapping_session(out.string());
-  const auto clouds_before = core::read_time_index(original.lidar.clouds);
-  const auto clouds_after = core::read_time_index(imported.lidar.clouds);
-  ASSERT_EQ(clouds_after.size(), clouds_before.size());
-  ASSERT_GE(clouds_before.size(), 2u);
-  for (std::size_t i = 0; i < clouds_before.size(); ++i) {
-    // Stamps go through ros::Time (whole ns) and back to double seconds near 100 s.
-    EXPECT_NEAR(clouds_after[i].time_s, clouds_before[i].time_s, 1e-9) << "cloud " << i;
-    const cloud::LoadedCloud a = cloud::load_pcd(clouds_before[i].file);
-    const cloud::LoadedCloud b = cloud::load_pcd(clouds_after[i].file);
-    ASSERT_EQ(b.cloud->size(), a.cloud->size()) << "cloud " << i;
-    EXPECT_TRUE(b.has_intensity && b.has_ring && b.has_t);
-    for (std::size_t k = 0; k < a.cloud->size(); ++k) {
-      const auto& p = a.cloud->points[k];
-      const auto& q = b.cloud->points[k];
-      // x y z, intensity and ring travel as the same float32 and uint16 values.
-      ASSERT_EQ(q.x, p.x) << "cloud " << i << " point " << k;
-      ASSERT_EQ(q.y, p.y) << "cloud " << i << " point " << k;
-      ASSERT_EQ(q.z, p.z) << "cloud " << i << " point " << k;
-      ASSERT_EQ(q.intensity, p.intensity) << "cloud " << i << " point " << k;
-      ASSERT_EQ(q.ring, p.ring) << "cloud " << i << " point " << k;
-      // t goes float32 s -> integer ns after the stamp -> float32 s: within 1 ns plus float
-      // rounding of a value below 1 s (6e-8 s).
-      ASSERT_NEAR(q.t, p.t, 1e-7) << "cloud " << i << " point " << k;
-    }
-  }
-  for (const char* name : {"rgb", "thermal"}) {
-    const auto frames_before = core::read_time_index(original.cameras.at(name).frames);
-    const auto frames_after = core::read_time_index(imported.cameras.at(name).frames);
-    ASSERT_EQ(frames_after.size(), frames_before.size()) << name;
-    for (std::size_t i = 0; i < frames_before.size(); ++i) {
-      EXPECT_NEAR(frames_after[i].time_s, frames_before[i].time_s, 1e-9) << name << " " << i;
-      const cv::Mat a = cv::imread(frames_before[i].file, cv::IMREAD_UNCHANGED);
-      const cv::Mat b = cv::imread(frames_after[i].file, cv::IMREAD_UNCHANGED);
-      ASSERT_EQ(b.type(), a.type()) << name << " " << i;
-      ASSERT_EQ(b.size(), a.size()) << name << " " << i;
-      EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0) << name << " frame " << i << " differs";
-    }
-    const core::CameraIntrinsics a = core::read_camera_info(original.cameras.at(name).intrinsics);
-    const core::CameraIntrinsics b = core::read_camera_info(imported.cameras.at(name).intrinsics);
-    EXPECT_EQ(b.fx, a.fx);
-    EXPECT_EQ(b.cy, a.cy);
-    EXPECT_EQ(b.width, a.width);
-    EXPECT_EQ(b.distortion, a.distortion);
-  }
+  test_util::expect_same_mapping_session(sim.string(), out.string());
 }
 
 // ---------------------------------------------------------------------------------------

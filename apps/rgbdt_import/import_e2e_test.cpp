@@ -1,0 +1,164 @@
+// End to end through ROS 1 bags written by the real ROS 1 Python libraries: a simulated
+// calibration session and a simulated mapping session, each written to a bag
+// (tests/fixtures/write_ros1_calibration_bag.py, write_ros1_bag.py), imported with
+// rgbdt_import and calibrated or mapped, score against the ground truth as the original
+// session does.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "import_test_util.hpp"
+#include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/session.hpp"
+#include "rgbdt/core/transform.hpp"
+#include "rgbdt/test/process.hpp"
+#include "rgbdt/test/test_util.hpp"
+
+namespace rgbdt::import {
+namespace {
+
+namespace fs = std::filesystem;
+
+using test_util::CommandRun;
+using test_util::read_text;
+using test_util::run_command;
+
+std::string fixture(const std::string& script) { return test_util::ros1_fixture(script); }
+
+// The result from the bag agrees with the original's when the two errors against the truth
+// differ by at most 10 % of the original's, or by at most `floor`: both errors come from the
+// same noisy views, and near zero a ratio says nothing (0.002 deg against 0.001 deg is a
+// ratio of 2 and no difference a user could see).
+void expect_same_error(double from_bag, double original, double floor, const std::string& what) {
+  EXPECT_LE(std::abs(from_bag - original), std::max(0.1 * original, floor))
+      << what << ": " << from_bag << " from the bag, " << original << " from the original session";
+  std::printf("%s: %.6g from the bag, %.6g from the original session (ratio %.4f)\n", what.c_str(),
+              from_bag, original, original > 0.0 ? from_bag / original : 1.0);
+}
+
+// A calibration session of 4 views, as a ROS 1 bag of still intervals and moving gaps,
+// imported (the intervals become the views; the board and the camera_info YAML are given, as
+// a user gives them) and calibrated: each camera's rotation and translation errors against
+// the truth within 10 % (floors 0.01 deg and 1 mm) of rgbdt_calibrate's on the original
+// session. Both runs use no seeds: an imported session has none.
+TEST(ImportEndToEnd, CalibrationThroughARos1BagScoresAsTheOriginalSession) {
+  const fs::path dir = test::temp_dir("work");
+  const fs::path sim = dir / "sim", bag = dir / "calib.bag", imported = dir / "imported";
+  CommandRun run = run_command(
+      test::built_program("rgbdt_sim") + " calibration --views 4 --seed 1 --out " + sim.string(),
+      dir / "sim.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  run = run_command(
+      fixture("write_ros1_calibration_bag.py") + " " + sim.string() + " " + bag.string(),
+      dir / "fixture.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const core::CalibrationSession original = core::read_calibration_session(sim.string());
+  // The target entry as session.yaml writes it (flow style, one line).
+  const std::string yaml = read_text(sim / "session.yaml");
+  const std::string target = yaml.substr(8, yaml.find('\n') - 8);
+  ASSERT_EQ(yaml.rfind("target: {", 0), 0u) << yaml;
+  run = run_command(test::built_program("rgbdt_import") + " " + bag.string() + " --out " +
+                        imported.string() +
+                        " --kind calibration --lidar /lidar/points --camera rgb=/rgb/image_raw"
+                        " --camera thermal=/thermal/image_raw --intrinsics rgb=" +
+                        original.cameras.at("rgb").intrinsics + " --intrinsics thermal=" +
+                        original.cameras.at("thermal").intrinsics + " --target '" + target + "'",
+                    dir / "import.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const core::CalibrationSession from_bag = core::read_calibration_session(imported.string());
+  ASSERT_EQ(from_bag.views.size(), original.views.size()) << run.output;
+
+  for (const auto& [session, out] :
+       {std::pair{sim, dir / "calib_original"}, std::pair{imported, dir / "calib_bag"}}) {
+    run = run_command(test::built_program("rgbdt_calibrate") + " " + session.string() + " --out " +
+                          out.string() + " --seeds none",
+                      fs::path(out.string() + ".log"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+  }
+  for (const std::string camera : {"rgb", "thermal"}) {
+    const Eigen::Isometry3d truth =
+        core::read_extrinsics((sim / "true_calib" / ("extrinsics_" + camera + ".yaml")).string())
+            .T_parent_child;
+    const auto errors = [&](const fs::path& out) {
+      const Eigen::Isometry3d T =
+          core::read_extrinsics((out / ("extrinsics_" + camera + ".yaml")).string()).T_parent_child;
+      return std::pair{core::rotation_error_rad(T, truth) * 180.0 / M_PI,
+                       core::translation_error_m(T, truth)};
+    };
+    const auto [rotation_original, translation_original] = errors(dir / "calib_original");
+    const auto [rotation_bag, translation_bag] = errors(dir / "calib_bag");
+    expect_same_error(rotation_bag, rotation_original, 0.01, camera + " rotation error [deg]");
+    expect_same_error(translation_bag, translation_original, 0.001,
+                      camera + " translation error [m]");
+  }
+}
+
+// A number of summary.json: `"key": 1.5`, or inside `"outer": {... "key": 1.5`.
+double json_number(const std::string& json, const std::string& key, const std::string& outer = "") {
+  const size_t from = outer.empty() ? 0 : json.find("\"" + outer + "\"");
+  std::smatch m;
+  const std::string rest = from == std::string::npos ? std::string() : json.substr(from);
+  if (!std::regex_search(rest, m, std::regex("\"" + key + "\": ([-+0-9.eE]+)"))) {
+    ADD_FAILURE() << "no number " << key << " in summary.json:\n" << json;
+    return NAN;
+  }
+  return std::stod(m[1]);
+}
+
+// A 3 s mapping session through a ROS 1 bag (write_ros1_bag.py), imported and mapped with the
+// true calibration: trajectory RMSE and thermal error within 10 % (floors 1 mm and 0.01 K) of
+// rgbdt_mapper's on the original session's clouds. The ground truth and the thermal camera's
+// radiometry are not in a bag: they are copied into the imported session.
+TEST(ImportEndToEnd, MappingThroughARos1BagScoresAsTheOriginalSession) {
+  const fs::path dir = test::temp_dir("work");
+  const fs::path sim = dir / "sim", bag = dir / "map.bag", imported = dir / "imported";
+  CommandRun run = run_command(test::built_program("rgbdt_sim") + " mapping --out " + sim.string() +
+                                   " --duration 3 --rgb-fps 2 --thermal-fps 4 --supersampling 1 -q",
+                               dir / "sim.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  run = run_command(fixture("write_ros1_bag.py") + " " + sim.string() + " " + bag.string(),
+                    dir / "fixture.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  run = run_command(test::built_program("rgbdt_import") + " " + bag.string() + " --out " +
+                        imported.string() +
+                        " --kind mapping --lidar /lidar/points --camera rgb=/rgb/image_raw"
+                        " --camera thermal=/thermal/image_raw",
+                    dir / "import.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const core::MappingSession original = core::read_mapping_session(sim.string());
+  core::MappingSession from_bag = core::read_mapping_session(imported.string());
+  from_bag.cameras.at("thermal").radiometry = original.cameras.at("thermal").radiometry;
+  core::write_mapping_session((imported / "session.yaml").string(), from_bag);
+  fs::copy_file(sim / "ground_truth.yaml", imported / "ground_truth.yaml");
+  fs::copy(sim / "ground_truth", imported / "ground_truth", fs::copy_options::recursive);
+
+  std::string summaries[2];
+  int k = 0;
+  for (const auto& [session, out] :
+       {std::pair{sim, dir / "map_original"}, std::pair{imported, dir / "map_bag"}}) {
+    // The original through its PCD index, as the imported one (it has no rawlog).
+    run = run_command(test::built_program("rgbdt_mapper") + " " + session.string() + " --calib " +
+                          (sim / "true_calib").string() + " --out " + out.string() +
+                          " --lidar clouds",
+                      fs::path(out.string() + ".log"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    summaries[k++] = read_text(out / "summary.json");
+  }
+  expect_same_error(json_number(summaries[1], "trajectory_rmse_m"),
+                    json_number(summaries[0], "trajectory_rmse_m"), 0.001, "trajectory RMSE [m]");
+  expect_same_error(json_number(summaries[1], "mean", "thermal_error_k"),
+                    json_number(summaries[0], "mean", "thermal_error_k"), 0.01,
+                    "thermal error, mean [K]");
+  expect_same_error(json_number(summaries[1], "p95", "thermal_error_k"),
+                    json_number(summaries[0], "p95", "thermal_error_k"), 0.01,
+                    "thermal error, p95 [K]");
+}
+
+}  // namespace
+}  // namespace rgbdt::import
