@@ -162,8 +162,8 @@ void replace_in_file(const fs::path& p, const std::string& from, const std::stri
 
 void replace_regex_in_file(const fs::path& p, const std::string& pattern, const std::string& to) {
   const std::string text = slurp(p);
-  const std::string changed = std::regex_replace(text, std::regex(pattern), to,
-                                                 std::regex_constants::format_first_only);
+  const std::string changed =
+      std::regex_replace(text, std::regex(pattern), to, std::regex_constants::format_first_only);
   ASSERT_NE(changed, text) << "/" << pattern << "/ not in " << p;
   write_bytes(p, changed);
 }
@@ -196,7 +196,8 @@ void expect_clean_failure(const RunResult& r, const std::string& names, const fs
   EXPECT_GE(r.exit_code, 1) << r.output;
   EXPECT_LE(r.exit_code, 127) << r.output;
   EXPECT_NE(r.output.find(names), std::string::npos)
-      << "the message does not name '" << names << "':\n" << r.output;
+      << "the message does not name '" << names << "':\n"
+      << r.output;
   for (const auto& p : complete_looking_outputs(out)) {
     ADD_FAILURE() << "a failed run left " << p << ", which looks like a finished result";
   }
@@ -216,7 +217,8 @@ void expect_valid_summary_json(const fs::path& summary) {
   const std::string text = slurp(summary);
   // JSON has no inf or nan; a writer that prints them writes a file no parser reads.
   EXPECT_EQ(std::regex_search(text, std::regex(R"(:\s*-?(inf|nan)\b)", std::regex::icase)), false)
-      << summary << ":\n" << text;
+      << summary << ":\n"
+      << text;
 }
 
 // ---------------------------------------------------------------- calibration sessions
@@ -262,8 +264,8 @@ std::string pcd_header(const std::string& data_kind, int points) {
   std::ostringstream h;
   h << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n"
        "TYPE F F F\nCOUNT 1 1 1\nWIDTH "
-    << points << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << points << "\nDATA "
-    << data_kind << "\n";
+    << points << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << points << "\nDATA " << data_kind
+    << "\n";
   return h.str();
 }
 
@@ -274,7 +276,8 @@ std::string u32(std::uint32_t v) {
 }
 
 TEST_F(Calibrate, CompressedPcdOfCompressedSizeZeroIsAnError) {
-  write_bytes(session_ / "clouds/000.pcd", pcd_header("binary_compressed", 1000) + u32(0) + u32(12000));
+  write_bytes(session_ / "clouds/000.pcd",
+              pcd_header("binary_compressed", 1000) + u32(0) + u32(12000));
   expect_clean_failure(run(), "000.pcd", out_);
 }
 
@@ -283,8 +286,8 @@ TEST_F(Calibrate, CompressedPcdClaimingAHugeSizeIsRefusedBeforeAllocating) {
   std::mt19937 rng(3);
   std::string data(600000, '\0');
   for (auto& c : data) c = static_cast<char>(rng());
-  write_bytes(session_ / "clouds/000.pcd", pcd_header("binary_compressed", 357913941) +
-                                               u32(600000) + u32(0xFFFFFFF0u) + data);
+  write_bytes(session_ / "clouds/000.pcd",
+              pcd_header("binary_compressed", 357913941) + u32(600000) + u32(0xFFFFFFF0u) + data);
   expect_clean_failure(run(), "000.pcd", out_);
 }
 
@@ -302,7 +305,8 @@ TEST_F(Calibrate, CompressedPcdWithInflatedPointCountIsAnError) {
 }
 
 TEST_F(Calibrate, PrincipalPointOutsideTheImageIsAnError) {
-  replace_regex_in_file(session_ / "rgb.yaml", R"(data: \[1335\.2, 0, [0-9.]+,)", "data: [1335.2, 0, 99999,");
+  replace_regex_in_file(session_ / "rgb.yaml", R"(data: \[1335\.2, 0, [0-9.]+,)",
+                        "data: [1335.2, 0, 99999,");
   expect_clean_failure(run(), "rgb.yaml", out_);
 }
 
@@ -349,7 +353,8 @@ TEST_F(Calibrate, HugePngHeaderIsRefusedBeforeDecoding) {
     for (int i = 0; i < 4; ++i) s[i] = static_cast<char>((v >> (24 - 8 * i)) & 0xff);
     return s;
   };
-  const std::string ihdr = "IHDR" + be32(30000) + be32(30000) + std::string("\x08\x02\x00\x00\x00", 5);
+  const std::string ihdr =
+      "IHDR" + be32(30000) + be32(30000) + std::string("\x08\x02\x00\x00\x00", 5);
   png += be32(13) + ihdr + be32(0);  // CRC not checked by the header reader's size test
   png += be32(0) + "IEND" + be32(0xAE426082u);
   write_bytes(session_ / "rgb/000.png", png);
@@ -357,18 +362,23 @@ TEST_F(Calibrate, HugePngHeaderIsRefusedBeforeDecoding) {
 }
 
 TEST_F(Calibrate, IntrinsicsNamingANonYamlFileNamesThePathNotItsContents) {
-  replace_in_file(session_ / "session.yaml", "rgb: {intrinsics: rgb.yaml}", "rgb: {intrinsics: clouds/000.pcd}");
+  replace_in_file(session_ / "session.yaml", "rgb: {intrinsics: rgb.yaml}",
+                  "rgb: {intrinsics: clouds/000.pcd}");
   const auto r = run();
   expect_clean_failure(r, "000.pcd", out_);
   EXPECT_EQ(r.output.find("Point Cloud Data"), std::string::npos)
-      << "the message quotes the file's contents:\n" << r.output;
+      << "the message quotes the file's contents:\n"
+      << r.output;
 }
 
 TEST_F(Calibrate, LongCameraNameDoesNotCrash) {
   const std::string name(100, 'c');
-  replace_in_file(session_ / "session.yaml", "  rgb: {intrinsics: rgb.yaml}", "  " + name + ": {intrinsics: rgb.yaml}");
-  replace_in_file(session_ / "session.yaml", "images: {rgb: rgb/000.png", "images: {" + name + ": rgb/000.png");
-  replace_in_file(session_ / "session.yaml", "images: {rgb: rgb/001.png", "images: {" + name + ": rgb/001.png");
+  replace_in_file(session_ / "session.yaml", "  rgb: {intrinsics: rgb.yaml}",
+                  "  " + name + ": {intrinsics: rgb.yaml}");
+  replace_in_file(session_ / "session.yaml", "images: {rgb: rgb/000.png",
+                  "images: {" + name + ": rgb/000.png");
+  replace_in_file(session_ / "session.yaml", "images: {rgb: rgb/001.png",
+                  "images: {" + name + ": rgb/001.png");
   const auto r = run();
   EXPECT_EQ(r.signal, 0) << r.output;
   EXPECT_FALSE(r.timed_out);
@@ -492,7 +502,8 @@ TEST_F(Mapper, MissingFrameIsFoundBeforeTheWork) {
 class TiltLidar : public ::testing::Test {
  protected:
   RunResult info(const fs::path& rawlog) {
-    return run_app("rgbdt_tilt_lidar", {"info", rawlog.string()}, rgbdt::test::temp_path("info.log"));
+    return run_app("rgbdt_tilt_lidar", {"info", rawlog.string()},
+                   rgbdt::test::temp_path("info.log"));
   }
 };
 
@@ -522,8 +533,87 @@ TEST_F(TiltLidar, GzipOfGarbageIsNotARawlog) {
   std::string bytes(20000, '\0');
   for (auto& c : bytes) c = static_cast<char>(rng());
   write_bytes(raw, bytes);
-  ASSERT_EQ(std::system(("gzip -c " + raw.string() + " > " + (dir / "garbage.rawlog").string()).c_str()), 0);
+  ASSERT_EQ(
+      std::system(("gzip -c " + raw.string() + " > " + (dir / "garbage.rawlog").string()).c_str()),
+      0);
   expect_clean_failure(info(dir / "garbage.rawlog"), "garbage.rawlog", dir / "none");
+}
+
+// rgbdt_import on bags that are not bags, or whose records lie about their lengths: exit 1
+// naming the file, nothing left in --out, memory bounded by the cap. The real bags are
+// rosbag2's own test recordings (../shared/data/rosbag2), cut or with a length word rewritten.
+class Import : public ::testing::Test {
+ protected:
+  RunResult import(const fs::path& bag, const fs::path& out) {
+    return run_app("rgbdt_import",
+                   {bag.string(), "--out", out.string(), "--kind", "mapping", "--lidar", "/points"},
+                   rgbdt::test::temp_path("import.log"));
+  }
+  static fs::path rosbag2(const std::string& relative) {
+    const fs::path p = fs::path(RGBDT_SHARED_DATA_DIR) / "rosbag2" / relative;
+    if (!fs::exists(p)) ADD_FAILURE() << "missing real-data file " << p;
+    return p;
+  }
+};
+
+TEST_F(Import, FilesThatAreNoBagAreErrorsNamingThem) {
+  const fs::path dir = rgbdt::test::temp_dir("bags");
+  std::mt19937 rng(5);
+  std::string noise(100000, '\0');
+  for (auto& c : noise) c = static_cast<char>(rng());
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"empty.mcap", ""},
+      {"noise.mcap", noise},
+      {"noise.bag", noise},
+      {"mcap_magic.mcap", std::string("\x89MCAP0\r\n", 8) + noise.substr(0, 5000)},
+      {"ros1_magic.bag", "#ROSBAG V2.0\n" + noise.substr(0, 5000)},
+      {"sqlite_magic.db3", std::string("SQLite format 3\0", 16) + noise.substr(0, 5000)},
+  };
+  for (const auto& [name, bytes] : cases) {
+    write_bytes(dir / name, bytes);
+    const fs::path out = dir / ("out_" + name);
+    expect_clean_failure(import(dir / name, out), name, out);
+    EXPECT_FALSE(fs::exists(out)) << name << ": a failed import left " << out;
+  }
+}
+
+TEST_F(Import, RealMcapCutOrLyingAboutALengthIsRefused) {
+  const fs::path dir = rgbdt::test::temp_dir("mcap");
+  const std::string real = slurp(rosbag2("rosbag2_py/test/resources/mcap/talker/talker.mcap"));
+  ASSERT_GT(real.size(), 200u);
+  // Every 64-bit length word of the first records claims ~2^62 bytes, one file each; and
+  // the file cut at a few places (a cut recording without a summary reads to its last whole
+  // record and is not an error; the topic asked for is not in it either way).
+  int n = 0;
+  for (std::size_t at = 8; at + 8 <= std::min<std::size_t>(real.size(), 72); at += 1) {
+    std::string bytes = real;
+    bytes.replace(at, 8, std::string("\x00\x00\x00\x00\x00\x00\x00\x40", 8));
+    const std::string name = "claim_" + std::to_string(at) + ".mcap";
+    write_bytes(dir / name, bytes);
+    const auto r = import(dir / name, dir / ("out_" + name));
+    SCOPED_TRACE(name);
+    EXPECT_FALSE(r.timed_out) << r.output;
+    EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << "\n" << r.output;
+    EXPECT_NE(r.exit_code, 0) << r.output;
+    ++n;
+  }
+  for (const std::size_t keep : {std::size_t{9}, std::size_t{40}, real.size() / 2, real.size() - 3}) {
+    const std::string name = "cut_" + std::to_string(keep) + ".mcap";
+    write_bytes(dir / name, real.substr(0, keep));
+    expect_clean_failure(import(dir / name, dir / ("out_" + name)), name, dir / ("out_" + name));
+  }
+  EXPECT_GT(n, 50);
+}
+
+TEST_F(Import, ConfigFileWithAnUnknownKeyNamesTheFileAndTheKey) {
+  const fs::path dir = rgbdt::test::temp_dir("config");
+  write_bytes(dir / "import.yaml", "kind: mapping\nlidr: /points\n");
+  const auto r = run_app(
+      "rgbdt_import",
+      {"--config", (dir / "import.yaml").string(), "x.mcap", "--out", (dir / "out").string()},
+      rgbdt::test::temp_path("import.log"));
+  expect_clean_failure(r, "import.yaml", dir / "out");
+  EXPECT_NE(r.output.find("lidr"), std::string::npos) << r.output;
 }
 
 }  // namespace
