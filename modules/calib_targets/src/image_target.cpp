@@ -327,6 +327,310 @@ std::vector<Eigen::Vector2i> grow_region(const cv::Mat& f, const Eigen::Vector2i
   return boundary;
 }
 
+namespace {
+
+/// Why the image cannot be searched for the target; empty when it can.
+std::string image_problem(const cv::Mat& image, const core::PinholeCamera& camera) {
+  if (image.empty()) return "empty image";
+  if (image.cols != camera.width() || image.rows != camera.height()) {
+    return "image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+           " but the camera '" + camera.intrinsics().camera_name + "' expects " +
+           std::to_string(camera.width()) + "x" + std::to_string(camera.height());
+  }
+  if (image.depth() != CV_8U && image.depth() != CV_16U) {
+    return "image depth must be 8 or 16 bit unsigned";
+  }
+  return "";
+}
+
+/// The smoothed image of a region of f. GaussianBlur reads the pixels around a sub-matrix,
+/// so a region's result equals the same region of the whole.
+cv::Mat smoothed(const cv::Mat& f, const cv::Rect& roi, const ImageDetectionOptions& options) {
+  cv::Mat out;
+  if (options.smoothing_sigma_px > 0)
+    cv::GaussianBlur(f(roi), out, cv::Size(), options.smoothing_sigma_px);
+  else
+    out = f(roi);
+  return out;
+}
+
+/// What the candidate search looks for: the target's hole layout and the range of hole
+/// semi-axes in the image [px].
+struct HoleSearch {
+  std::vector<Eigen::Vector2d> layout;
+  double min_axis = 0.0, max_axis = 0.0;
+};
+
+/// A multi-hole board with a seed: the seed (anywhere on the board) picks the layout match
+/// that has it on the board; the candidates nearest the seed are tried first. False, with
+/// the reason, when none matches.
+bool pick_layout_near_seed(const cv::Mat& f, const core::TargetSpec& target,
+                           const HoleSearch& search, const Eigen::Vector2d& seed_px,
+                           const ImageDetectionOptions& options, std::vector<Candidate>* chosen,
+                           std::string* reason) {
+  auto cand = find_candidates(f, search.min_axis, search.max_axis, options);
+  const auto dist = [&](const Candidate& c) {
+    return std::hypot(c.ellipse.center.x - seed_px.x(), c.ellipse.center.y - seed_px.y());
+  };
+  std::stable_sort(cand.begin(), cand.end(),
+                   [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
+  Eigen::Vector2d half = Eigen::Vector2d::Zero();
+  for (const auto& h : search.layout) half = half.cwiseMax(h.cwiseAbs());
+  half.array() += 2.0 * target.radius_m;
+  if (target.board_size_m) half = 0.5 * *target.board_size_m;
+  std::string why;
+  const auto pick =
+      match_layout_image(search.layout, cand, options.up_image.normalized(), &why, seed_px, half);
+  if (pick.empty()) {
+    *reason = why;
+    return false;
+  }
+  for (int i : pick) chosen->push_back(cand[static_cast<std::size_t>(i)]);
+  return true;
+}
+
+/// The seed picks among the hole candidates the automatic search finds: the smallest
+/// one that contains it (none when no candidate does).
+std::optional<Candidate> candidate_around_seed(const cv::Mat& f, const HoleSearch& search,
+                                               const Eigen::Vector2d& seed_px,
+                                               const ImageDetectionOptions& options) {
+  const auto cand = find_candidates(f, search.min_axis, search.max_axis, options);
+  int best = -1;
+  double best_area = 0.0;
+  for (std::size_t i = 0; i < cand.size(); ++i) {
+    const cv::RotatedRect& e = cand[i].ellipse;
+    const double a = 0.5 * e.size.width, b = 0.5 * e.size.height;
+    if (!(a > 0 && b > 0)) continue;
+    const double th = e.angle * kPi / 180.0;
+    const double dx = seed_px.x() - e.center.x, dy = seed_px.y() - e.center.y;
+    const double u = std::cos(th) * dx + std::sin(th) * dy,
+                 v = -std::sin(th) * dx + std::cos(th) * dy;
+    if ((u * u) / (a * a) + (v * v) / (b * b) > 1.0) continue;
+    if (best < 0 || a * b < best_area) {
+      best = static_cast<int>(i);
+      best_area = a * b;
+    }
+  }
+  if (best < 0) return std::nullopt;
+  return cand[static_cast<std::size_t>(best)];
+}
+
+/// The hole from the seed's own region: contrast from the seed's region grown with a loose
+/// threshold, its ring gives the board. False, with the reason, when that region is no hole.
+bool hole_from_seed_region(const cv::Mat& f, const HoleSearch& search,
+                           const Eigen::Vector2d& seed_px, const ImageDetectionOptions& options,
+                           std::vector<Candidate>* chosen, std::string* reason) {
+  const Eigen::Vector2i s = seed_px.array().round().cast<int>();
+  cv::Mat region;
+  const auto bnd =
+      grow_region(smoothed(f, cv::Rect(0, 0, f.cols, f.rows), options), s, 0.05, 0.25, &region,
+                  static_cast<std::size_t>(kPi * search.max_axis * search.max_axis));
+  std::vector<cv::Point> pts;
+  for (const auto& b : bnd) pts.emplace_back(b.x(), b.y());
+  if (pts.size() < 6) {
+    *reason = "the seed's region is not a hole (it leaks into the background or is tiny)";
+    return false;
+  }
+  Candidate c;
+  c.ellipse = cv::fitEllipse(pts);
+  double spread = 0.0;
+  if (!levels(f, c.ellipse, &c.inside, &c.outside, &spread) ||
+      std::abs(c.outside - c.inside) < options.min_contrast) {
+    *reason = "the seed's region has no contrast with its surroundings";
+    return false;
+  }
+  chosen->push_back(c);
+  return true;
+}
+
+/// The candidates that become the target's holes, in layout order (seed: see
+/// detect_target_in_image). False, with the reason, when the image shows no target.
+bool choose_candidates(const cv::Mat& f, const core::TargetSpec& target, const HoleSearch& search,
+                       const std::optional<Eigen::Vector2d>& seed_px,
+                       const ImageDetectionOptions& options, std::vector<Candidate>* chosen,
+                       std::string* reason) {
+  if (!seed_px) {
+    const auto cand = find_candidates(f, search.min_axis, search.max_axis, options);
+    std::string why;
+    const auto pick = match_layout_image(search.layout, cand, options.up_image.normalized(), &why);
+    if (pick.empty()) {
+      *reason = why;
+      return false;
+    }
+    for (int i : pick) chosen->push_back(cand[static_cast<std::size_t>(i)]);
+    return true;
+  }
+  if (search.layout.size() > 1) {
+    return pick_layout_near_seed(f, target, search, *seed_px, options, chosen, reason);
+  }
+  // Only when no candidate contains the seed, the seed's own region (grown with a loose
+  // threshold) gives the hole; on blurred thermal edges that region can leak out of the
+  // hole into an ellipse several times too large, which then misleads the calibration.
+  if (const std::optional<Candidate> around = candidate_around_seed(f, search, *seed_px, options)) {
+    chosen->push_back(*around);
+  }
+  if (chosen->empty() && search.layout.size() == 1) {
+    return hole_from_seed_region(f, search, *seed_px, options, chosen, reason);
+  }
+  return true;
+}
+
+/// A hole's region grown by Algorithm 1.
+struct HoleRegion {
+  cv::Rect roi;                              ///< the window it was grown in
+  cv::Mat smooth;                            ///< the smoothed image over roi
+  cv::Mat region;                            ///< its mask over roi
+  std::vector<Eigen::Vector2i> boundary_px;  ///< its boundary pixels in the image
+};
+
+/// Algorithm 1 from `seed` for the hole of candidate c, with thresholds from its contrast.
+HoleRegion grow_hole_region(const cv::Mat& f, const Candidate& c, const Eigen::Vector2i& seed,
+                            const ImageDetectionOptions& options) {
+  const double contrast = std::abs(c.outside - c.inside);
+  const double expected_area = kPi * 0.25 * c.ellipse.size.width * c.ellipse.size.height;
+  const cv::Rect whole(0, 0, f.cols, f.rows);
+  // Algorithm 1 and the edge refinement within 2.5 semi-axes of the hole; the whole image
+  // only when the region reaches that window's border (a leak, or a seed outside it).
+  const double reach = 2.5 * 0.5 * std::max(c.ellipse.size.width, c.ellipse.size.height) +
+                       options.edge_search_px + 3;
+  HoleRegion r;
+  r.roi = cv::Rect(static_cast<int>(std::floor(c.ellipse.center.x - reach)),
+                   static_cast<int>(std::floor(c.ellipse.center.y - reach)),
+                   static_cast<int>(std::ceil(2 * reach)) + 1,
+                   static_cast<int>(std::ceil(2 * reach)) + 1);
+  r.roi &= whole;
+  if (!r.roi.contains(cv::Point(seed.x(), seed.y()))) r.roi = whole;
+  r.smooth = smoothed(f, r.roi, options);
+  const auto grow = [&] {
+    r.boundary_px =
+        grow_region(r.smooth, seed - Eigen::Vector2i(r.roi.x, r.roi.y),
+                    options.epsilon_fraction * contrast, options.seed_guard_fraction * contrast,
+                    &r.region, static_cast<std::size_t>(3.0 * expected_area) + 100);
+  };
+  grow();
+  const auto touches_window = [&] {
+    for (const Eigen::Vector2i& b : r.boundary_px) {
+      if ((b.x() == 0 && r.roi.x > 0) || (b.y() == 0 && r.roi.y > 0) ||
+          (b.x() == r.roi.width - 1 && r.roi.x + r.roi.width < f.cols) ||
+          (b.y() == r.roi.height - 1 && r.roi.y + r.roi.height < f.rows))
+        return true;
+    }
+    return false;
+  };
+  if (r.roi != whole && touches_window()) {
+    r.roi = whole;
+    r.smooth = smoothed(f, r.roi, options);
+    grow();
+  }
+  for (Eigen::Vector2i& b : r.boundary_px) b += Eigen::Vector2i(r.roi.x, r.roi.y);
+  return r;
+}
+
+/// Sub-pixel edges: the mid-level crossing along the gradient through each boundary pixel.
+std::vector<Eigen::Vector2d> subpixel_edges(const cv::Mat& f, const HoleRegion& r,
+                                            const Candidate& c,
+                                            const ImageDetectionOptions& options) {
+  std::vector<Eigen::Vector2d> edges;
+  cv::Mat gx, gy;
+  cv::Sobel(r.smooth, gx, CV_32F, 1, 0, 3);
+  cv::Sobel(r.smooth, gy, CV_32F, 0, 1, 3);
+  const double mid = 0.5 * (c.inside + c.outside);
+  for (const Eigen::Vector2i& b : r.boundary_px) {
+    Eigen::Vector2d d(gx.at<float>(b.y() - r.roi.y, b.x() - r.roi.x),
+                      gy.at<float>(b.y() - r.roi.y, b.x() - r.roi.x));
+    const Eigen::Vector2d radial =
+        (b.cast<double>() - Eigen::Vector2d(c.ellipse.center.x, c.ellipse.center.y)).normalized();
+    if (d.norm() < 1e-6) d = radial;
+    d.normalize();
+    if (d.dot(radial) < 0) d = -d;  // outwards
+    double best_t = 1e9;
+    const double step = 0.1;
+    double prev = bilinear(f, b.x() - options.edge_search_px * d.x(),
+                           b.y() - options.edge_search_px * d.y()) -
+                  mid;
+    for (double t = -options.edge_search_px + step; t <= options.edge_search_px + 1e-9; t += step) {
+      const float v = bilinear(f, b.x() + t * d.x(), b.y() + t * d.y());
+      if (v < 0) break;
+      const double cur = v - mid;
+      if ((prev < 0) != (cur < 0) && std::abs(t) < std::abs(best_t)) {
+        best_t = t - step * cur / (cur - prev);  // linear interpolation of the crossing
+      }
+      prev = cur;
+    }
+    if (best_t < 1e8) edges.push_back(b.cast<double>() + best_t * d);
+  }
+  return edges;
+}
+
+/// hole->ellipse through its edge points; edge points far from it (noise, neighbouring
+/// structures) are dropped and the ellipse refit.
+void fit_hole_ellipse(ImageHole* hole) {
+  std::vector<cv::Point2f> ep;
+  for (const auto& p : hole->edge_points_px)
+    ep.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+  hole->ellipse = cv::fitEllipse(ep);
+  std::vector<Eigen::Vector2d> kept;
+  const double a = 0.5 * hole->ellipse.size.width, bb = 0.5 * hole->ellipse.size.height;
+  const double ang = hole->ellipse.angle * kPi / 180.0;
+  for (const auto& p : hole->edge_points_px) {
+    const double dx = p.x() - hole->ellipse.center.x, dy = p.y() - hole->ellipse.center.y;
+    const double u = dx * std::cos(ang) + dy * std::sin(ang),
+                 v = -dx * std::sin(ang) + dy * std::cos(ang);
+    const double rho = std::sqrt(u * u / (a * a) + v * v / (bb * bb));
+    if (std::abs(rho - 1.0) * std::min(a, bb) < 1.5) kept.push_back(p);
+  }
+  if (kept.size() >= 6 && kept.size() < hole->edge_points_px.size()) {
+    hole->edge_points_px = kept;
+    ep.clear();
+    for (const auto& p : kept)
+      ep.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
+    hole->ellipse = cv::fitEllipse(ep);
+  }
+}
+
+/// Hole h of the target from candidate c: its region grown from `seed`, sub-pixel edges and
+/// ellipse. False, with the reason, when the region or its edges do not make a hole.
+bool trace_hole(const cv::Mat& f, const Candidate& c, std::size_t h, const Eigen::Vector2i& seed,
+                const ImageDetectionOptions& options, ImageHole* hole, std::string* reason) {
+  const double contrast = std::abs(c.outside - c.inside);
+  const double expected_area = kPi * 0.25 * c.ellipse.size.width * c.ellipse.size.height;
+  const HoleRegion r = grow_hole_region(f, c, seed, options);
+  hole->boundary_px = r.boundary_px;
+  const double area = cv::countNonZero(r.region);
+  if (hole->boundary_px.empty() || area < 0.4 * expected_area) {
+    *reason = "hole " + std::to_string(h) + ": region growing gave " +
+              std::to_string(static_cast<int>(area)) + " px, expected about " +
+              std::to_string(static_cast<int>(expected_area));
+    return false;
+  }
+  hole->dark = c.inside < c.outside;
+  hole->contrast = contrast;
+  hole->edge_points_px = subpixel_edges(f, r, c, options);
+  if (hole->edge_points_px.size() < 6) {
+    *reason = "hole " + std::to_string(h) + ": too few sub-pixel edge points";
+    return false;
+  }
+  fit_hole_ellipse(hole);
+  hole->center_px = Eigen::Vector2d(hole->ellipse.center.x, hole->ellipse.center.y);
+  return true;
+}
+
+/// Layout order -> row-major, top-left first (board y up, then x).
+std::vector<ImageHole> in_row_major_order(const std::vector<Eigen::Vector2d>& layout,
+                                          const std::vector<ImageHole>& holes) {
+  std::vector<std::size_t> order(layout.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    if (std::abs(layout[a].y() - layout[b].y()) > 1e-6) return layout[a].y() > layout[b].y();
+    return layout[a].x() < layout[b].x();
+  });
+  std::vector<ImageHole> sorted;
+  for (std::size_t k : order) sorted.push_back(holes[k]);
+  return sorted;
+}
+
+}  // namespace
+
 ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::TargetSpec& target,
                                             const core::PinholeCamera& camera,
                                             const ImageDetectionOptions& options,
@@ -338,36 +642,15 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
     throw std::invalid_argument("TargetSpec: radius_m = " + std::to_string(target.radius_m) + " must be > 0");
   }
   ImageTargetDetection det;
-  if (image.empty()) {
-    det.reason = "empty image";
-    return det;
-  }
-  if (image.cols != camera.width() || image.rows != camera.height()) {
-    det.reason = "image is " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
-                 " but the camera '" + camera.intrinsics().camera_name + "' expects " +
-                 std::to_string(camera.width()) + "x" + std::to_string(camera.height());
-    return det;
-  }
-  if (image.depth() != CV_8U && image.depth() != CV_16U) {
-    det.reason = "image depth must be 8 or 16 bit unsigned";
-    return det;
-  }
+  det.reason = image_problem(image, camera);
+  if (!det.reason.empty()) return det;
   const cv::Mat f = normalise_image(image, options.low_percentile, options.high_percentile);
-  // The smoothed image of a region (the whole image by default). GaussianBlur reads the
-  // pixels around a sub-matrix, so a region's result equals the same region of the whole.
-  const auto smoothed = [&](const cv::Rect& roi) {
-    cv::Mat out;
-    if (options.smoothing_sigma_px > 0) cv::GaussianBlur(f(roi), out, cv::Size(), options.smoothing_sigma_px);
-    else out = f(roi);
-    return out;
-  };
-  const cv::Rect whole(0, 0, f.cols, f.rows);
   const double fx = camera.intrinsics().fx;
-  const double max_axis = 1.1 * fx * target.radius_m / options.min_range_m;
-  const double min_axis = 0.9 * fx * target.radius_m / options.max_range_m;
-  const std::vector<Eigen::Vector2d> layout = target_layout(target);
+  HoleSearch search;
+  search.max_axis = 1.1 * fx * target.radius_m / options.min_range_m;
+  search.min_axis = 0.9 * fx * target.radius_m / options.max_range_m;
+  search.layout = target_layout(target);
 
-  std::vector<Candidate> chosen;
   if (seed_px) {
     const Eigen::Vector2i s = seed_px->array().round().cast<int>();
     if (s.x() < 0 || s.y() < 0 || s.x() >= f.cols || s.y() >= f.rows) {
@@ -375,189 +658,22 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
       return det;
     }
   }
-  if (seed_px && layout.size() > 1) {
-    // A multi-hole board: the seed (anywhere on the board) picks the layout match that has
-    // it on the board; the candidates nearest the seed are tried first.
-    auto cand = find_candidates(f, min_axis, max_axis, options);
-    const auto dist = [&](const Candidate& c) {
-      return std::hypot(c.ellipse.center.x - seed_px->x(), c.ellipse.center.y - seed_px->y());
-    };
-    std::stable_sort(cand.begin(), cand.end(), [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
-    Eigen::Vector2d half = Eigen::Vector2d::Zero();
-    for (const auto& h : layout) half = half.cwiseMax(h.cwiseAbs());
-    half.array() += 2.0 * target.radius_m;
-    if (target.board_size_m) half = 0.5 * *target.board_size_m;
-    std::string why;
-    const auto pick = match_layout_image(layout, cand, options.up_image.normalized(), &why, *seed_px, half);
-    if (pick.empty()) {
-      det.reason = why;
-      return det;
-    }
-    for (int i : pick) chosen.push_back(cand[static_cast<std::size_t>(i)]);
-  } else if (seed_px) {
-    // The seed picks among the hole candidates the automatic search finds: the smallest
-    // one that contains it. Only when none does, the seed's own region (grown with a loose
-    // threshold) gives the hole; on blurred thermal edges that region can leak out of the
-    // hole into an ellipse several times too large, which then misleads the calibration.
-    {
-      const auto cand = find_candidates(f, min_axis, max_axis, options);
-      int best = -1;
-      double best_area = 0.0;
-      for (std::size_t i = 0; i < cand.size(); ++i) {
-        const cv::RotatedRect& e = cand[i].ellipse;
-        const double a = 0.5 * e.size.width, b = 0.5 * e.size.height;
-        if (!(a > 0 && b > 0)) continue;
-        const double th = e.angle * kPi / 180.0;
-        const double dx = seed_px->x() - e.center.x, dy = seed_px->y() - e.center.y;
-        const double u = std::cos(th) * dx + std::sin(th) * dy, v = -std::sin(th) * dx + std::cos(th) * dy;
-        if ((u * u) / (a * a) + (v * v) / (b * b) > 1.0) continue;
-        if (best < 0 || a * b < best_area) {
-          best = static_cast<int>(i);
-          best_area = a * b;
-        }
-      }
-      if (best >= 0) chosen.push_back(cand[static_cast<std::size_t>(best)]);
-    }
-  }
-  if (seed_px && chosen.empty() && layout.size() == 1) {
-    const Eigen::Vector2i s = seed_px->array().round().cast<int>();
-    // Contrast from the seed's region grown with a loose threshold: its ring gives the board.
-    cv::Mat region;
-    const auto bnd = grow_region(smoothed(whole), s, 0.05, 0.25, &region,
-                                 static_cast<std::size_t>(kPi * max_axis * max_axis));
-    std::vector<cv::Point> pts;
-    for (const auto& b : bnd) pts.emplace_back(b.x(), b.y());
-    if (pts.size() < 6) {
-      det.reason = "the seed's region is not a hole (it leaks into the background or is tiny)";
-      return det;
-    }
-    Candidate c;
-    c.ellipse = cv::fitEllipse(pts);
-    double spread = 0.0;
-    if (!levels(f, c.ellipse, &c.inside, &c.outside, &spread) ||
-        std::abs(c.outside - c.inside) < options.min_contrast) {
-      det.reason = "the seed's region has no contrast with its surroundings";
-      return det;
-    }
-    chosen.push_back(c);
-  } else if (!seed_px) {
-    const auto cand = find_candidates(f, min_axis, max_axis, options);
-    std::string why;
-    const auto pick = match_layout_image(layout, cand, options.up_image.normalized(), &why);
-    if (pick.empty()) {
-      det.reason = why;
-      return det;
-    }
-    for (int i : pick) chosen.push_back(cand[static_cast<std::size_t>(i)]);
-  }
+  std::vector<Candidate> chosen;
+  if (!choose_candidates(f, target, search, seed_px, options, &chosen, &det.reason)) return det;
 
   for (std::size_t h = 0; h < chosen.size(); ++h) {
     const Candidate& c = chosen[h];
-    const double contrast = std::abs(c.outside - c.inside);
-    const double expected_area = kPi * 0.25 * c.ellipse.size.width * c.ellipse.size.height;
-    const Eigen::Vector2i s(static_cast<int>(std::lround(c.ellipse.center.x)),
-                            static_cast<int>(std::lround(c.ellipse.center.y)));
     // Algorithm 1 from the hole's centre (the automatic seed) or the clicked seed.
-    const Eigen::Vector2i seed = seed_px && layout.size() == 1 ? Eigen::Vector2i(seed_px->array().round().cast<int>()) : s;
-    // Algorithm 1 and the edge refinement within 2.5 semi-axes of the hole; the whole image
-    // only when the region reaches that window's border (a leak, or a seed outside it).
-    const double reach = 2.5 * 0.5 * std::max(c.ellipse.size.width, c.ellipse.size.height) + options.edge_search_px + 3;
-    cv::Rect roi(static_cast<int>(std::floor(c.ellipse.center.x - reach)), static_cast<int>(std::floor(c.ellipse.center.y - reach)),
-                 static_cast<int>(std::ceil(2 * reach)) + 1, static_cast<int>(std::ceil(2 * reach)) + 1);
-    roi &= whole;
-    if (!roi.contains(cv::Point(seed.x(), seed.y()))) roi = whole;
-    cv::Mat region, smooth = smoothed(roi);
+    const Eigen::Vector2i seed =
+        seed_px && search.layout.size() == 1
+            ? Eigen::Vector2i(seed_px->array().round().cast<int>())
+            : Eigen::Vector2i(static_cast<int>(std::lround(c.ellipse.center.x)),
+                              static_cast<int>(std::lround(c.ellipse.center.y)));
     ImageHole hole;
-    const auto grow = [&] {
-      hole.boundary_px = grow_region(smooth, seed - Eigen::Vector2i(roi.x, roi.y), options.epsilon_fraction * contrast,
-                                     options.seed_guard_fraction * contrast, &region,
-                                     static_cast<std::size_t>(3.0 * expected_area) + 100);
-    };
-    grow();
-    const auto touches_window = [&] {
-      for (const Eigen::Vector2i& b : hole.boundary_px) {
-        if ((b.x() == 0 && roi.x > 0) || (b.y() == 0 && roi.y > 0) ||
-            (b.x() == roi.width - 1 && roi.x + roi.width < f.cols) ||
-            (b.y() == roi.height - 1 && roi.y + roi.height < f.rows))
-          return true;
-      }
-      return false;
-    };
-    if (roi != whole && touches_window()) {
-      roi = whole;
-      smooth = smoothed(roi);
-      grow();
-    }
-    for (Eigen::Vector2i& b : hole.boundary_px) b += Eigen::Vector2i(roi.x, roi.y);
-    const double area = cv::countNonZero(region);
-    if (hole.boundary_px.empty() || area < 0.4 * expected_area) {
-      det.reason = "hole " + std::to_string(h) + ": region growing gave " + std::to_string(static_cast<int>(area)) +
-                   " px, expected about " + std::to_string(static_cast<int>(expected_area));
-      return det;
-    }
-    hole.dark = c.inside < c.outside;
-    hole.contrast = contrast;
-    // Sub-pixel edges: the mid-level crossing along the gradient through each boundary pixel.
-    cv::Mat gx, gy;
-    cv::Sobel(smooth, gx, CV_32F, 1, 0, 3);
-    cv::Sobel(smooth, gy, CV_32F, 0, 1, 3);
-    const double mid = 0.5 * (c.inside + c.outside);
-    for (const Eigen::Vector2i& b : hole.boundary_px) {
-      Eigen::Vector2d d(gx.at<float>(b.y() - roi.y, b.x() - roi.x), gy.at<float>(b.y() - roi.y, b.x() - roi.x));
-      const Eigen::Vector2d radial = (b.cast<double>() - Eigen::Vector2d(c.ellipse.center.x, c.ellipse.center.y)).normalized();
-      if (d.norm() < 1e-6) d = radial;
-      d.normalize();
-      if (d.dot(radial) < 0) d = -d;  // outwards
-      double best_t = 1e9;
-      const double step = 0.1;
-      double prev = bilinear(f, b.x() - options.edge_search_px * d.x(), b.y() - options.edge_search_px * d.y()) - mid;
-      for (double t = -options.edge_search_px + step; t <= options.edge_search_px + 1e-9; t += step) {
-        const float v = bilinear(f, b.x() + t * d.x(), b.y() + t * d.y());
-        if (v < 0) break;
-        const double cur = v - mid;
-        if ((prev < 0) != (cur < 0) && std::abs(t) < std::abs(best_t)) {
-          best_t = t - step * cur / (cur - prev);  // linear interpolation of the crossing
-        }
-        prev = cur;
-      }
-      if (best_t < 1e8) hole.edge_points_px.push_back(b.cast<double>() + best_t * d);
-    }
-    if (hole.edge_points_px.size() < 6) {
-      det.reason = "hole " + std::to_string(h) + ": too few sub-pixel edge points";
-      return det;
-    }
-    std::vector<cv::Point2f> ep;
-    for (const auto& p : hole.edge_points_px) ep.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
-    hole.ellipse = cv::fitEllipse(ep);
-    // Drop edge points far from the ellipse (noise, neighbouring structures), refit.
-    std::vector<Eigen::Vector2d> kept;
-    const double a = 0.5 * hole.ellipse.size.width, bb = 0.5 * hole.ellipse.size.height;
-    const double ang = hole.ellipse.angle * kPi / 180.0;
-    for (const auto& p : hole.edge_points_px) {
-      const double dx = p.x() - hole.ellipse.center.x, dy = p.y() - hole.ellipse.center.y;
-      const double u = dx * std::cos(ang) + dy * std::sin(ang), v = -dx * std::sin(ang) + dy * std::cos(ang);
-      const double rho = std::sqrt(u * u / (a * a) + v * v / (bb * bb));
-      if (std::abs(rho - 1.0) * std::min(a, bb) < 1.5) kept.push_back(p);
-    }
-    if (kept.size() >= 6 && kept.size() < hole.edge_points_px.size()) {
-      hole.edge_points_px = kept;
-      ep.clear();
-      for (const auto& p : kept) ep.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
-      hole.ellipse = cv::fitEllipse(ep);
-    }
-    hole.center_px = Eigen::Vector2d(hole.ellipse.center.x, hole.ellipse.center.y);
+    if (!trace_hole(f, c, h, seed, options, &hole, &det.reason)) return det;
     det.holes.push_back(std::move(hole));
   }
-  // Layout order -> row-major, top-left first (board y up, then x).
-  std::vector<std::size_t> order(layout.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    if (std::abs(layout[a].y() - layout[b].y()) > 1e-6) return layout[a].y() > layout[b].y();
-    return layout[a].x() < layout[b].x();
-  });
-  std::vector<ImageHole> sorted;
-  for (std::size_t k : order) sorted.push_back(det.holes[k]);
-  det.holes = std::move(sorted);
+  det.holes = in_row_major_order(search.layout, det.holes);
   det.ok = true;
   return det;
 }

@@ -313,26 +313,16 @@ std::string checkerboard_saddle_problem(const cv::Mat& f, const std::vector<cv::
   return {};
 }
 
-}  // namespace
+/// One image the detectors search: the normalised 8-bit image, maybe downscaled, upscaled,
+/// equalised or inverted.
+struct Variant {
+  cv::Mat img;
+  bool inverted;
+  double scale;
+  std::string name;
+};
 
-PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern,
-                                const PatternDetectionOptions& options) {
-  if (const std::string e = pattern.validate() + options.validate(); !e.empty()) throw std::invalid_argument(e);
-  PatternDetection det;
-  if (image.empty()) {
-    det.reason = "empty image";
-    return det;
-  }
-  const cv::Mat f = normalise_image(image, options.low_percentile, options.high_percentile);
-  cv::Mat u8;
-  f.convertTo(u8, CV_8U, 255.0);
-  const cv::Size size(pattern.cols, pattern.rows);
-  struct Variant {
-    cv::Mat img;
-    bool inverted;
-    double scale;
-    std::string name;
-  };
+std::vector<Variant> image_variants(const cv::Mat& u8, const PatternDetectionOptions& options) {
   // The search runs on images of at most kSearchWidthPx (a larger image is downscaled; its
   // corners are refined at full resolution afterwards): the detectors' cost grows much
   // faster than the pixel count (findChessboardCorners on a 1288x964 image without a
@@ -362,15 +352,25 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
     variants.push_back({up, false, 2.0, "normalised 2x"});
     if (options.try_inverted) variants.push_back({255 - up, true, 2.0, "normalised inverted 2x"});
   }
-  // Cheapest attempts first: every variant with the default detectors, then the
-  // exhaustive sector-based search on the normalised image only.
-  // Attempts: (variant, mode) with mode 0 = sector-based detector (SB), 3 = SB without its
-  // own histogram equalisation (CALIB_CB_NORMALIZE_IMAGE amplifies the noise of a large
-  // uniform background until a small board is lost: 3 of 6 simulated RGB board images),
-  // 1 = SB exhaustive, 2 = classic quad detector (its corners are less accurate, so it
-  // comes last; with CALIB_CB_FAST_CHECK, and only on images that were not downscaled:
-  // on a 1000 px copy of an RGB board image it still runs 4-10 s per variant).
-  std::vector<std::pair<const Variant*, int>> attempts;
+  return variants;
+}
+
+/// A variant and the detector mode to run on it.
+using Attempt = std::pair<const Variant*, int>;
+
+/// Cheapest attempts first: every variant with the default detectors, then the
+/// exhaustive sector-based search on the normalised image only.
+/// Attempts: (variant, mode) with mode 0 = sector-based detector (SB), 3 = SB without its
+/// own histogram equalisation (CALIB_CB_NORMALIZE_IMAGE amplifies the noise of a large
+/// uniform background until a small board is lost: 3 of 6 simulated RGB board images),
+/// 1 = SB exhaustive, 2 = classic quad detector (its corners are less accurate, so it
+/// comes last; with CALIB_CB_FAST_CHECK, and only on images that were not downscaled:
+/// on a 1000 px copy of an RGB board image it still runs 4-10 s per variant).
+/// *plausible: whether the image may show the pattern (always for circle grids).
+std::vector<Attempt> detection_attempts(const std::vector<Variant>& variants,
+                                        const PatternSpec& pattern, cv::Size size,
+                                        bool* plausible) {
+  std::vector<Attempt> attempts;
   for (const Variant& v : variants) attempts.emplace_back(&v, 0);
   // cv::checkChessboard (the quick test behind CALIB_CB_FAST_CHECK: a few ms to 0.25 s per
   // variant) decides whether the search is worth it. Where no variant passes it, only the
@@ -379,88 +379,135 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
   // search finds passes on at least one variant; the 20 simulated night images, whose board
   // no attempt finds, and uniform noise pass on none. A 640x512 image without the pattern
   // then ends after about 1 s instead of 11.6 s.
-  bool plausible = pattern.type != PatternType::kCheckerboard;
-  for (const Variant& v : variants) plausible = plausible || cv::checkChessboard(v.img, size);
-  if (!plausible) attempts.resize(1);
-  if (plausible && pattern.type == PatternType::kCheckerboard) {
+  *plausible = pattern.type != PatternType::kCheckerboard;
+  for (const Variant& v : variants) *plausible = *plausible || cv::checkChessboard(v.img, size);
+  if (!*plausible) attempts.resize(1);
+  if (*plausible && pattern.type == PatternType::kCheckerboard) {
     for (const Variant& v : variants) attempts.emplace_back(&v, 3);
     attempts.emplace_back(&variants[0], 1);
     for (const Variant& v : variants)
       if (v.scale >= 1.0 && std::max(v.img.cols, v.img.rows) <= kMaxUpscaledWidthPx) attempts.emplace_back(&v, 2);
   }
+  return attempts;
+}
+
+/// Runs one attempt's detector on the variant: whether it found the pattern, its points in
+/// the variant's pixels and the detector's name.
+bool run_detector(const Variant& v, int mode, const PatternSpec& pattern, cv::Size size,
+                  std::vector<cv::Point2f>* pts, std::string* method) {
+  const bool exhaustive = mode == 1;
+  bool found = false;
+  if (pattern.type == PatternType::kCheckerboard) {
+    if (mode != 2) {
+      // CALIB_CB_ACCURACY only where the corners are final: a downscaled copy's are
+      // refined at full resolution below.
+      const int sb_flags = (mode == 3 ? 0 : cv::CALIB_CB_NORMALIZE_IMAGE) |
+                           (v.scale >= 1.0 ? cv::CALIB_CB_ACCURACY : 0) |
+                           (exhaustive ? cv::CALIB_CB_EXHAUSTIVE : 0);
+      found = cv::findChessboardCornersSB(v.img, size, *pts, sb_flags);
+      *method = exhaustive  ? "findChessboardCornersSB (exhaustive)"
+                : mode == 3 ? "findChessboardCornersSB (no equalisation)"
+                            : "findChessboardCornersSB";
+    } else {
+      found =
+          cv::findChessboardCorners(v.img, size, *pts,
+                                    cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE |
+                                        cv::CALIB_CB_FILTER_QUADS | cv::CALIB_CB_FAST_CHECK);
+      *method = "findChessboardCorners";
+    }
+    return found;
+  }
+  cv::SimpleBlobDetector::Params p;
+  p.filterByColor = true;
+  p.blobColor = v.inverted ? 255 : 0;
+  p.minArea = 8.0f * static_cast<float>(v.scale * v.scale);
+  p.maxArea = static_cast<float>(0.05 * static_cast<double>(v.img.total()));
+  p.filterByCircularity = true;
+  p.minCircularity = 0.5f;
+  p.filterByInertia = true;
+  p.minInertiaRatio = 0.1f;
+  p.filterByConvexity = true;
+  p.minConvexity = 0.8f;
+  auto blob = cv::SimpleBlobDetector::create(p);
+  const int grid = pattern.type == PatternType::kCircles ? cv::CALIB_CB_SYMMETRIC_GRID
+                                                         : cv::CALIB_CB_ASYMMETRIC_GRID;
+  found = cv::findCirclesGrid(v.img, size, *pts, grid, blob);
+  *method = "findCirclesGrid";
+  if (!found) {
+    found = cv::findCirclesGrid(v.img, size, *pts, grid | cv::CALIB_CB_CLUSTERING, blob);
+    *method = "findCirclesGrid (clustering)";
+  }
+  return found;
+}
+
+/// A variant's points in the full-resolution image.
+void to_full_resolution(double scale, std::vector<cv::Point2f>* pts) {
+  for (auto& p : *pts) p *= static_cast<float>(1.0 / scale);
+  if (scale != 1.0) {
+    // Keep the sub-pixel offset of the centre convention: (x + 0.5) / s - 0.5.
+    for (auto& p : *pts)
+      p +=
+          cv::Point2f(static_cast<float>(0.5 / scale - 0.5), static_cast<float>(0.5 / scale - 0.5));
+  }
+}
+
+/// Refine on the original data (normalised float, no 8-bit quantisation). The sector-based
+/// detector with CALIB_CB_ACCURACY already localises corners to ~0.1 px; cornerSubPix is
+/// finer on sharp X-junctions (simulated thermal boards: 0.04 px vs 0.12 px RMS) but
+/// wanders off on blurred real ones with rounded squares (czha626 masked set, 39 views:
+/// SB alone 0.56 px RMS, SB corners moved 1.5-3 px by an 11x11 cornerSubPix, 2.2 px RMS).
+/// So the refinement is kept only where both estimators agree to within SB's precision;
+/// the classic detector's corners are always refined. *method notes corners kept.
+void refine_checkerboard_corners(const cv::Mat& f, const Variant& v, int mode,
+                                 const PatternDetectionOptions& options,
+                                 std::vector<cv::Point2f>* pts, std::string* method) {
+  std::vector<cv::Point2f> refined = *pts;
+  cv::cornerSubPix(f, refined, cv::Size(options.subpix_window_px, options.subpix_window_px),
+                   cv::Size(-1, -1),
+                   cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
+  std::vector<double> moves;
+  for (std::size_t k = 0; k < pts->size(); ++k) moves.push_back(cv::norm(refined[k] - (*pts)[k]));
+  std::sort(moves.begin(), moves.end());
+  const double p90_move = moves[moves.size() * 9 / 10];
+  // A downscaled detection's corners are only as precise as its pixels are large.
+  if (mode == 2 || p90_move <= kRefinementAgreementPx / std::min(1.0, v.scale)) {
+    *pts = refined;
+  } else {
+    std::ostringstream os;
+    os.precision(2);
+    os << " (SB corners kept: cornerSubPix moved 10 % of them > " << p90_move << " px)";
+    *method += os.str();
+  }
+}
+
+}  // namespace
+
+PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern,
+                                const PatternDetectionOptions& options) {
+  if (const std::string e = pattern.validate() + options.validate(); !e.empty())
+    throw std::invalid_argument(e);
+  PatternDetection det;
+  if (image.empty()) {
+    det.reason = "empty image";
+    return det;
+  }
+  const cv::Mat f = normalise_image(image, options.low_percentile, options.high_percentile);
+  cv::Mat u8;
+  f.convertTo(u8, CV_8U, 255.0);
+  const cv::Size size(pattern.cols, pattern.rows);
+  const std::vector<Variant> variants = image_variants(u8, options);
+  bool plausible = false;
+  const std::vector<Attempt> attempts = detection_attempts(variants, pattern, size, &plausible);
   std::string rejected;  // the last detection that failed the saddle check
   for (const auto& [vp, mode] : attempts) {
-    const bool exhaustive = mode == 1;
     const Variant& v = *vp;
     std::vector<cv::Point2f> pts;
-    bool found = false;
     std::string method;
+    if (!run_detector(v, mode, pattern, size, &pts, &method)) continue;
+    if (pts.size() != static_cast<std::size_t>(pattern.cols * pattern.rows)) continue;
+    to_full_resolution(v.scale, &pts);
     if (pattern.type == PatternType::kCheckerboard) {
-      if (mode != 2) {
-        // CALIB_CB_ACCURACY only where the corners are final: a downscaled copy's are
-        // refined at full resolution below.
-        const int sb_flags = (mode == 3 ? 0 : cv::CALIB_CB_NORMALIZE_IMAGE) |
-                             (v.scale >= 1.0 ? cv::CALIB_CB_ACCURACY : 0) | (exhaustive ? cv::CALIB_CB_EXHAUSTIVE : 0);
-        found = cv::findChessboardCornersSB(v.img, size, pts, sb_flags);
-        method = exhaustive ? "findChessboardCornersSB (exhaustive)"
-                            : mode == 3 ? "findChessboardCornersSB (no equalisation)" : "findChessboardCornersSB";
-      } else {
-        found = cv::findChessboardCorners(v.img, size, pts,
-                                          cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE |
-                                              cv::CALIB_CB_FILTER_QUADS | cv::CALIB_CB_FAST_CHECK);
-        method = "findChessboardCorners";
-      }
-    } else {
-      cv::SimpleBlobDetector::Params p;
-      p.filterByColor = true;
-      p.blobColor = v.inverted ? 255 : 0;
-      p.minArea = 8.0f * static_cast<float>(v.scale * v.scale);
-      p.maxArea = static_cast<float>(0.05 * static_cast<double>(v.img.total()));
-      p.filterByCircularity = true;
-      p.minCircularity = 0.5f;
-      p.filterByInertia = true;
-      p.minInertiaRatio = 0.1f;
-      p.filterByConvexity = true;
-      p.minConvexity = 0.8f;
-      auto blob = cv::SimpleBlobDetector::create(p);
-      const int grid = pattern.type == PatternType::kCircles ? cv::CALIB_CB_SYMMETRIC_GRID : cv::CALIB_CB_ASYMMETRIC_GRID;
-      found = cv::findCirclesGrid(v.img, size, pts, grid, blob);
-      method = "findCirclesGrid";
-      if (!found) {
-        found = cv::findCirclesGrid(v.img, size, pts, grid | cv::CALIB_CB_CLUSTERING, blob);
-        method = "findCirclesGrid (clustering)";
-      }
-    }
-    if (!found || pts.size() != static_cast<std::size_t>(pattern.cols * pattern.rows)) continue;
-    for (auto& p : pts) p *= static_cast<float>(1.0 / v.scale);
-    if (v.scale != 1.0) {
-      // Keep the sub-pixel offset of the centre convention: (x + 0.5) / s - 0.5.
-      for (auto& p : pts) p += cv::Point2f(static_cast<float>(0.5 / v.scale - 0.5), static_cast<float>(0.5 / v.scale - 0.5));
-    }
-    if (pattern.type == PatternType::kCheckerboard) {
-      // Refine on the original data (normalised float, no 8-bit quantisation). The sector-based
-      // detector with CALIB_CB_ACCURACY already localises corners to ~0.1 px; cornerSubPix is
-      // finer on sharp X-junctions (simulated thermal boards: 0.04 px vs 0.12 px RMS) but
-      // wanders off on blurred real ones with rounded squares (czha626 masked set, 39 views:
-      // SB alone 0.56 px RMS, SB corners moved 1.5-3 px by an 11x11 cornerSubPix, 2.2 px RMS).
-      // So the refinement is kept only where both estimators agree to within SB's precision;
-      // the classic detector's corners are always refined.
-      std::vector<cv::Point2f> refined = pts;
-      cv::cornerSubPix(f, refined, cv::Size(options.subpix_window_px, options.subpix_window_px), cv::Size(-1, -1),
-                       cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 1e-4));
-      std::vector<double> moves;
-      for (std::size_t k = 0; k < pts.size(); ++k) moves.push_back(cv::norm(refined[k] - pts[k]));
-      std::sort(moves.begin(), moves.end());
-      const double p90_move = moves[moves.size() * 9 / 10];
-      // A downscaled detection's corners are only as precise as its pixels are large.
-      if (mode == 2 || p90_move <= kRefinementAgreementPx / std::min(1.0, v.scale)) {
-        pts = refined;
-      } else {
-        std::ostringstream os;
-        os.precision(2);
-        os << " (SB corners kept: cornerSubPix moved 10 % of them > " << p90_move << " px)";
-        method += os.str();
-      }
+      refine_checkerboard_corners(f, v, mode, options, &pts, &method);
       if (const std::string why = checkerboard_saddle_problem(f, pts, size); !why.empty()) {
         rejected = method + " on " + v.name + ": " + why;
         continue;  // a false grid; the next detector or variant may find the real one
@@ -481,41 +528,52 @@ PatternDetection detect_pattern(const cv::Mat& image, const PatternSpec& pattern
   return det;
 }
 
-IntrinsicsResult calibrate_intrinsics(const std::vector<PatternDetection>& detections,
-                                      const std::vector<std::string>& names, cv::Size image_size,
-                                      const PatternSpec& pattern, const IntrinsicsOptions& options) {
-  if (const std::string e = pattern.validate() + options.validate(); !e.empty()) throw std::invalid_argument(e);
-  if (names.size() != detections.size()) throw std::invalid_argument("names and detections differ in size");
-  IntrinsicsResult res;
-  res.views.resize(detections.size());
-  const std::vector<cv::Point3f> board = pattern.object_points();
+namespace {
+
+/// Fills res->views with each view's name, points and, when it has no detection, the reason;
+/// returns the indices of the detected views.
+std::vector<std::size_t> label_views(const std::vector<PatternDetection>& detections,
+                                     const std::vector<std::string>& names, IntrinsicsResult* res) {
+  res->views.resize(detections.size());
   std::vector<std::size_t> used;
   for (std::size_t v = 0; v < detections.size(); ++v) {
-    res.views[v].name = names[v];
-    res.views[v].points = detections[v].points;
+    res->views[v].name = names[v];
+    res->views[v].points = detections[v].points;
     if (detections[v].ok) {
       used.push_back(v);
     } else {
-      res.views[v].reason = detections[v].reason;
+      res->views[v].reason = detections[v].reason;
     }
   }
-  const auto models = candidate_models(options.model, options.select_distortion);
-  auto gather = [&](const std::vector<std::size_t>& which, std::vector<std::vector<cv::Point3f>>* o,
-                    std::vector<std::vector<cv::Point2f>>* i) {
-    o->clear();
-    i->clear();
-    for (std::size_t v : which) {
-      o->push_back(board);
-      i->push_back(detections[v].points);
-    }
-  };
+  return used;
+}
+
+/// The board and detected points of the views `which`, one entry per view.
+void gather(const std::vector<cv::Point3f>& board, const std::vector<PatternDetection>& detections,
+            const std::vector<std::size_t>& which, std::vector<std::vector<cv::Point3f>>* o,
+            std::vector<std::vector<cv::Point2f>>* i) {
+  o->clear();
+  i->clear();
+  for (std::size_t v : which) {
+    o->push_back(board);
+    i->push_back(detections[v].points);
+  }
+}
+
+/// Outlier views: calibrate with the fullest model, reject views far above the median (up
+/// to three rounds; the reason in res->views). Returns the views kept.
+std::vector<std::size_t> reject_outlier_views(const std::vector<PatternDetection>& detections,
+                                              std::vector<std::size_t> used, cv::Size image_size,
+                                              const std::vector<cv::Point3f>& board,
+                                              const Model& fullest,
+                                              const IntrinsicsOptions& options,
+                                              IntrinsicsResult* res) {
   std::vector<std::vector<cv::Point3f>> obj;
   std::vector<std::vector<cv::Point2f>> img;
-  // Outlier views: calibrate with the fullest model, reject views far above the median.
   for (int round = 0; round < 3; ++round) {
     if (static_cast<int>(used.size()) < options.min_views) break;
-    gather(used, &obj, &img);
-    const Fit f = fit(options.model, models.back(), obj, img, image_size);
+    gather(board, detections, used, &obj, &img);
+    const Fit f = fit(options.model, fullest, obj, img, image_size);
     if (!f.ok) break;
     std::vector<double> rms;
     for (std::size_t k = 0; k < used.size(); ++k) rms.push_back(rms_of(project(options.model, board, f.rvecs[k], f.tvecs[k], f.K, f.D), img[k]));
@@ -529,76 +587,79 @@ IntrinsicsResult calibrate_intrinsics(const std::vector<PatternDetection>& detec
       } else {
         std::ostringstream s;
         s << "reprojection RMS " << rms[k] << " px above the limit " << limit << " px (unreliable detection)";
-        res.views[used[k]].reason = s.str();
+        res->views[used[k]].reason = s.str();
       }
     }
     if (keep.size() == used.size()) break;
     used = keep;
   }
-  if (static_cast<int>(used.size()) < options.min_views) {
-    res.reason = "only " + std::to_string(used.size()) + " usable views, need " + std::to_string(options.min_views);
-    return res;
-  }
-  gather(used, &obj, &img);
-  // Distortion terms by K-fold cross-validation over views.
-  std::size_t chosen = models.size() - 1;
-  if (models.size() > 1) {
-    const int folds = std::min<int>(options.folds, static_cast<int>(used.size()));
-    double best = 1e18;
-    for (std::size_t m = 0; m < models.size(); ++m) {
-      double se = 0.0;
-      int n = 0;
-      for (int k = 0; k < folds; ++k) {
-        std::vector<std::size_t> train, test;
-        for (std::size_t i = 0; i < used.size(); ++i) (static_cast<int>(i) % folds == k ? test : train).push_back(i);
-        std::vector<std::vector<cv::Point3f>> o;
-        std::vector<std::vector<cv::Point2f>> im;
-        for (std::size_t i : train) {
-          o.push_back(obj[i]);
-          im.push_back(img[i]);
-        }
-        const Fit f = fit(options.model, models[m], o, im, image_size);
-        if (!f.ok) {
-          se = 1e18;
-          break;
-        }
-        for (std::size_t i : test) {
-          const double r = heldout_rms(options.model, obj[i], img[i], f.K, f.D);
-          se += r * r * static_cast<double>(obj[i].size());
-          n += static_cast<int>(obj[i].size());
-        }
+  return used;
+}
+
+/// Distortion terms by K-fold cross-validation over views: each model's held-out and
+/// training RMS in res->candidates; returns the index of the simplest model (fewest terms)
+/// within min_improvement of the best.
+std::size_t choose_model(const std::vector<Model>& models,
+                         const std::vector<std::vector<cv::Point3f>>& obj,
+                         const std::vector<std::vector<cv::Point2f>>& img, cv::Size image_size,
+                         const IntrinsicsOptions& options, IntrinsicsResult* res) {
+  const std::size_t views = obj.size();
+  const int folds = std::min<int>(options.folds, static_cast<int>(views));
+  double best = 1e18;
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    double se = 0.0;
+    int n = 0;
+    for (int k = 0; k < folds; ++k) {
+      std::vector<std::size_t> train, test;
+      for (std::size_t i = 0; i < views; ++i)
+        (static_cast<int>(i) % folds == k ? test : train).push_back(i);
+      std::vector<std::vector<cv::Point3f>> o;
+      std::vector<std::vector<cv::Point2f>> im;
+      for (std::size_t i : train) {
+        o.push_back(obj[i]);
+        im.push_back(img[i]);
       }
-      const Fit all = fit(options.model, models[m], obj, img, image_size);
-      ModelCandidate c;
-      c.terms = models[m].terms;
-      c.heldout_rms_px = n > 0 ? std::sqrt(se / n) : 1e9;
-      c.train_rms_px = all.ok ? all.rms : 1e9;
-      res.candidates.push_back(c);
-      best = std::min(best, c.heldout_rms_px);
-    }
-    // The simplest model (fewest terms) within min_improvement of the best.
-    std::size_t pick = models.size() - 1;
-    for (std::size_t m = 0; m < models.size(); ++m) {
-      if (res.candidates[m].heldout_rms_px <= best * (1.0 + options.min_improvement) &&
-          models[m].free.size() < models[pick].free.size()) {
-        pick = m;
-      } else if (res.candidates[m].heldout_rms_px <= best * (1.0 + options.min_improvement) &&
-                 models[m].free.size() == models[pick].free.size() &&
-                 res.candidates[m].heldout_rms_px < res.candidates[pick].heldout_rms_px) {
-        pick = m;
+      const Fit f = fit(options.model, models[m], o, im, image_size);
+      if (!f.ok) {
+        se = 1e18;
+        break;
+      }
+      for (std::size_t i : test) {
+        const double r = heldout_rms(options.model, obj[i], img[i], f.K, f.D);
+        se += r * r * static_cast<double>(obj[i].size());
+        n += static_cast<int>(obj[i].size());
       }
     }
-    chosen = pick;
+    const Fit all = fit(options.model, models[m], obj, img, image_size);
+    ModelCandidate c;
+    c.terms = models[m].terms;
+    c.heldout_rms_px = n > 0 ? std::sqrt(se / n) : 1e9;
+    c.train_rms_px = all.ok ? all.rms : 1e9;
+    res->candidates.push_back(c);
+    best = std::min(best, c.heldout_rms_px);
   }
-  const Model& m = models[chosen];
-  const Fit f = fit(options.model, m, obj, img, image_size);
-  if (!f.ok) {
-    res.reason = "calibration did not converge";
-    return res;
+  // The simplest model (fewest terms) within min_improvement of the best.
+  std::size_t pick = models.size() - 1;
+  for (std::size_t m = 0; m < models.size(); ++m) {
+    if (res->candidates[m].heldout_rms_px <= best * (1.0 + options.min_improvement) &&
+        models[m].free.size() < models[pick].free.size()) {
+      pick = m;
+    } else if (res->candidates[m].heldout_rms_px <= best * (1.0 + options.min_improvement) &&
+               models[m].free.size() == models[pick].free.size() &&
+               res->candidates[m].heldout_rms_px < res->candidates[pick].heldout_rms_px) {
+      pick = m;
+    }
   }
-  res.distortion_terms = m.terms;
-  res.rms_px = f.rms;
-  auto& k = res.intrinsics;
+  return pick;
+}
+
+/// The fit's intrinsics, its estimated parameters and their standard deviations in *res.
+void set_intrinsics(const Fit& f, const Model& m, const std::vector<std::vector<cv::Point3f>>& obj,
+                    const std::vector<std::vector<cv::Point2f>>& img, cv::Size image_size,
+                    const IntrinsicsOptions& options, IntrinsicsResult* res) {
+  res->distortion_terms = m.terms;
+  res->rms_px = f.rms;
+  auto& k = res->intrinsics;
   k.width = image_size.width;
   k.height = image_size.height;
   k.fx = f.K.at<double>(0, 0);
@@ -607,25 +668,32 @@ IntrinsicsResult calibrate_intrinsics(const std::vector<PatternDetection>& detec
   k.cy = f.K.at<double>(1, 2);
   k.model = options.model;
   for (int i = 0; i < static_cast<int>(f.D.total()); ++i) k.distortion.push_back(f.D.at<double>(i));
-  res.parameter_names = {"fx", "fy", "cx", "cy"};
-  res.parameters = {k.fx, k.fy, k.cx, k.cy};
+  res->parameter_names = {"fx", "fy", "cx", "cy"};
+  res->parameters = {k.fx, k.fy, k.cx, k.cy};
   static const char* kPlumb[] = {"k1", "k2", "p1", "p2", "k3"};
   static const char* kFish[] = {"k1", "k2", "k3", "k4"};
   for (int d : m.free) {
-    res.parameter_names.push_back(options.model == DistortionModel::kEquidistant ? kFish[d] : kPlumb[d]);
-    res.parameters.push_back(k.distortion[static_cast<std::size_t>(d)]);
+    res->parameter_names.push_back(options.model == DistortionModel::kEquidistant ? kFish[d]
+                                                                                  : kPlumb[d]);
+    res->parameters.push_back(k.distortion[static_cast<std::size_t>(d)]);
   }
   if (options.model == DistortionModel::kPlumbBob && !f.std_intrinsics.empty()) {
     // OpenCV's order: fx fy cx cy k1 k2 p1 p2 k3 ...
-    for (int i = 0; i < 4; ++i) res.std_devs.push_back(f.std_intrinsics.at<double>(i));
-    for (int d : m.free) res.std_devs.push_back(f.std_intrinsics.at<double>(4 + d));
+    for (int i = 0; i < 4; ++i) res->std_devs.push_back(f.std_intrinsics.at<double>(i));
+    for (int d : m.free) res->std_devs.push_back(f.std_intrinsics.at<double>(4 + d));
   } else {
-    res.std_devs = numeric_std(options.model, m, f, obj, img);
+    res->std_devs = numeric_std(options.model, m, f, obj, img);
   }
-  // Per-view errors and coverage.
+}
+
+/// Per-view errors and coverage: each used view's reprojection and RMS in res->views, and the
+/// fraction of an 8 x 8 grid over the image that their points reach.
+void set_view_errors(const Fit& f, const std::vector<std::size_t>& used,
+                     const std::vector<cv::Point3f>& board, cv::Size image_size,
+                     const IntrinsicsOptions& options, IntrinsicsResult* res) {
   cv::Mat cells(8, 8, CV_8U, cv::Scalar(0));
   for (std::size_t i = 0; i < used.size(); ++i) {
-    auto& v = res.views[used[i]];
+    auto& v = res->views[used[i]];
     v.used = true;
     v.reprojected = project(options.model, board, f.rvecs[i], f.tvecs[i], f.K, f.D);
     v.rms_px = rms_of(v.reprojected, v.points);
@@ -635,7 +703,44 @@ IntrinsicsResult calibrate_intrinsics(const std::vector<PatternDetection>& detec
       cells.at<uchar>(cy, cx) = 1;
     }
   }
-  res.coverage = cv::countNonZero(cells) / 64.0;
+  res->coverage = cv::countNonZero(cells) / 64.0;
+}
+
+}  // namespace
+
+IntrinsicsResult calibrate_intrinsics(const std::vector<PatternDetection>& detections,
+                                      const std::vector<std::string>& names, cv::Size image_size,
+                                      const PatternSpec& pattern,
+                                      const IntrinsicsOptions& options) {
+  if (const std::string e = pattern.validate() + options.validate(); !e.empty())
+    throw std::invalid_argument(e);
+  if (names.size() != detections.size())
+    throw std::invalid_argument("names and detections differ in size");
+  IntrinsicsResult res;
+  const std::vector<cv::Point3f> board = pattern.object_points();
+  const auto models = candidate_models(options.model, options.select_distortion);
+  std::vector<std::size_t> used = label_views(detections, names, &res);
+  used = reject_outlier_views(detections, std::move(used), image_size, board, models.back(),
+                              options, &res);
+  if (static_cast<int>(used.size()) < options.min_views) {
+    res.reason = "only " + std::to_string(used.size()) + " usable views, need " +
+                 std::to_string(options.min_views);
+    return res;
+  }
+  std::vector<std::vector<cv::Point3f>> obj;
+  std::vector<std::vector<cv::Point2f>> img;
+  gather(board, detections, used, &obj, &img);
+  const std::size_t chosen = models.size() > 1
+                                 ? choose_model(models, obj, img, image_size, options, &res)
+                                 : models.size() - 1;
+  const Model& m = models[chosen];
+  const Fit f = fit(options.model, m, obj, img, image_size);
+  if (!f.ok) {
+    res.reason = "calibration did not converge";
+    return res;
+  }
+  set_intrinsics(f, m, obj, img, image_size, options, &res);
+  set_view_errors(f, used, board, image_size, options, &res);
   res.ok = true;
   return res;
 }

@@ -42,14 +42,14 @@ std::string join(const std::vector<std::string_view>& tokens) {
   return out;
 }
 
-// Reads and checks the header: every keyword's values, the lengths of FIELDS/SIZE/TYPE/COUNT,
-// WIDTH x HEIGHT == POINTS. Nothing is allocated from a header value here.
-PcdHeader parse_header(const std::string& bytes, const std::string& path) {
-  if (bytes.empty()) {
-    throw core::Error(path,
-                      "file is empty (0 bytes), expected a PCD header (VERSION, FIELDS, ...)");
-  }
-  std::map<std::string, std::vector<std::string_view>> values;
+// A PCD header's values by keyword (COLUMNS read as FIELDS).
+using HeaderValues = std::map<std::string, std::vector<std::string_view>>;
+
+// The header's lines up to and including DATA: each keyword known and given once, with a
+// value; *data_offset is the first byte after the DATA line.
+HeaderValues read_header_lines(const std::string& bytes, const std::string& path,
+                               std::size_t* data_offset) {
+  HeaderValues values;
   detail::HeaderLines lines(bytes, path, "PCD", "a DATA line");
   bool have_data = false;
   while (!have_data) {
@@ -78,24 +78,59 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
     values[key] = {tokens.begin() + 1, tokens.end()};
     if (key == "DATA") have_data = true;
   }
-  PcdHeader h;
-  h.data_offset = lines.end();
+  *data_offset = lines.end();
+  return values;
+}
 
-  for (const char* required : {"FIELDS", "SIZE", "TYPE", "WIDTH"}) {
-    if (!values.count(required)) {
-      throw core::Error(path, std::string("PCD header has no ") + required + " line");
-    }
+// One field of FIELDS/SIZE/TYPE/COUNT at byte `offset` of the point.
+RawField parse_field(std::string_view name, std::string_view size_text, std::string_view type,
+                     std::string_view count_text, std::size_t offset, const std::string& path) {
+  RawField f;
+  f.name = std::string(name);
+  const auto size = core::parse_integer(size_text, 1, 8);
+  if (!size || (*size != 1 && *size != 2 && *size != 4 && *size != 8)) {
+    throw core::Error(
+        path, "PCD field " + f.name + " has SIZE " + quote(size_text) + ", expected 1, 2, 4 or 8");
   }
-  const auto& names = values["FIELDS"];
-  const auto& sizes = values["SIZE"];
-  const auto& types = values["TYPE"];
+  f.size = static_cast<std::size_t>(*size);
+  if (type == "F") {
+    f.kind = Kind::kFloat;
+    if (f.size != 4 && f.size != 8) {
+      throw core::Error(path, "PCD field " + f.name + " has TYPE F with SIZE " +
+                                  std::to_string(f.size) + ", expected SIZE 4 or 8 for floats");
+    }
+  } else if (type == "U") {
+    f.kind = Kind::kUint;
+  } else if (type == "I") {
+    f.kind = Kind::kInt;
+  } else {
+    throw core::Error(path,
+                      "PCD field " + f.name + " has TYPE " + quote(type) + ", expected F, U or I");
+  }
+  const auto count =
+      core::parse_integer(count_text, 1, static_cast<long long>(detail::kMaxPointStep));
+  if (!count) {
+    throw core::Error(path, "PCD field " + f.name + " has COUNT " + quote(count_text) +
+                                ", expected a whole number from 1 to " +
+                                std::to_string(detail::kMaxPointStep));
+  }
+  f.count = static_cast<std::size_t>(*count);
+  f.offset = offset;
+  return f;
+}
+
+// h->fields and h->point_step from FIELDS, SIZE, TYPE and COUNT (one value per field each).
+void parse_fields(const HeaderValues& values, const std::string& path, PcdHeader* h) {
+  const auto& names = values.at("FIELDS");
+  const auto& sizes = values.at("SIZE");
+  const auto& types = values.at("TYPE");
   const std::size_t n_fields = names.size();
   if (n_fields > detail::kMaxFields) {
     throw core::Error(path, "PCD header has " + std::to_string(n_fields) +
                                 " FIELDS, expected at most " + std::to_string(detail::kMaxFields));
   }
   std::vector<std::string_view> counts =
-      values.count("COUNT") ? values["COUNT"] : std::vector<std::string_view>(n_fields, "1");
+      values.count("COUNT") ? values.at("COUNT") : std::vector<std::string_view>(n_fields, "1");
   for (const auto& [key, list] :
        {std::pair<const char*, const std::vector<std::string_view>*>{"SIZE", &sizes},
         {"TYPE", &types},
@@ -109,100 +144,100 @@ PcdHeader parse_header(const std::string& bytes, const std::string& path) {
   }
   std::size_t offset = 0;
   for (std::size_t k = 0; k < n_fields; ++k) {
-    RawField f;
-    f.name = std::string(names[k]);
-    const auto size = core::parse_integer(sizes[k], 1, 8);
-    if (!size || (*size != 1 && *size != 2 && *size != 4 && *size != 8)) {
-      throw core::Error(
-          path, "PCD field " + f.name + " has SIZE " + quote(sizes[k]) + ", expected 1, 2, 4 or 8");
-    }
-    f.size = static_cast<std::size_t>(*size);
-    if (types[k] == "F") {
-      f.kind = Kind::kFloat;
-      if (f.size != 4 && f.size != 8) {
-        throw core::Error(path, "PCD field " + f.name + " has TYPE F with SIZE " +
-                                    std::to_string(f.size) + ", expected SIZE 4 or 8 for floats");
-      }
-    } else if (types[k] == "U") {
-      f.kind = Kind::kUint;
-    } else if (types[k] == "I") {
-      f.kind = Kind::kInt;
-    } else {
-      throw core::Error(
-          path, "PCD field " + f.name + " has TYPE " + quote(types[k]) + ", expected F, U or I");
-    }
-    const auto count =
-        core::parse_integer(counts[k], 1, static_cast<long long>(detail::kMaxPointStep));
-    if (!count) {
-      throw core::Error(path, "PCD field " + f.name + " has COUNT " + quote(counts[k]) +
-                                  ", expected a whole number from 1 to " +
-                                  std::to_string(detail::kMaxPointStep));
-    }
-    f.count = static_cast<std::size_t>(*count);
-    f.offset = offset;
+    RawField f = parse_field(names[k], sizes[k], types[k], counts[k], offset, path);
     offset += f.size * f.count;
     if (offset > detail::kMaxPointStep) {
       throw core::Error(path, "PCD point is wider than " + std::to_string(detail::kMaxPointStep) +
                                   " bytes (SIZE x COUNT summed over FIELDS)");
     }
-    h.fields.push_back(std::move(f));
+    h->fields.push_back(std::move(f));
   }
-  h.point_step = offset;
+  h->point_step = offset;
+}
 
-  const auto whole = [&](const char* key, std::string_view text) {
-    const auto v = core::parse_integer(text, 0, 0xffffffffLL);
-    if (!v) {
-      throw core::Error(path, std::string("PCD header ") + key + " is " + quote(text) +
-                                  ", expected a whole number from 0 to 4294967295");
-    }
-    return static_cast<std::uint64_t>(*v);
-  };
-  const auto single = [&](const char* key) -> std::optional<std::string_view> {
-    if (!values.count(key)) return std::nullopt;
-    const auto& list = values[key];
-    if (list.size() != 1) {
-      throw core::Error(path, std::string("PCD header ") + key + " has " +
-                                  std::to_string(list.size()) + " values (" + join(list) +
-                                  "), expected one");
-    }
-    return list[0];
-  };
-  const std::uint64_t width = whole("WIDTH", *single("WIDTH"));
-  const std::uint64_t height = values.count("HEIGHT") ? whole("HEIGHT", *single("HEIGHT")) : 1;
-  h.points = width * height;
-  if (const auto p = single("POINTS")) {
-    const std::uint64_t points = whole("POINTS", *p);
-    if (points != h.points) {
-      throw core::Error(path, "PCD header says POINTS " + std::to_string(points) +
+// A header value that is a whole number from 0 to 2^32 - 1.
+std::uint64_t whole(const char* key, std::string_view text, const std::string& path) {
+  const auto v = core::parse_integer(text, 0, 0xffffffffLL);
+  if (!v) {
+    throw core::Error(path, std::string("PCD header ") + key + " is " + quote(text) +
+                                ", expected a whole number from 0 to 4294967295");
+  }
+  return static_cast<std::uint64_t>(*v);
+}
+
+// The one value of a keyword; none when the header has no such line.
+std::optional<std::string_view> single(const HeaderValues& values, const char* key,
+                                       const std::string& path) {
+  if (!values.count(key)) return std::nullopt;
+  const auto& list = values.at(key);
+  if (list.size() != 1) {
+    throw core::Error(path, std::string("PCD header ") + key + " has " +
+                                std::to_string(list.size()) + " values (" + join(list) +
+                                "), expected one");
+  }
+  return list[0];
+}
+
+// WIDTH x HEIGHT, checked against POINTS when given and against 2^32 - 1.
+std::uint64_t point_count(const HeaderValues& values, const std::string& path) {
+  const std::uint64_t width = whole("WIDTH", *single(values, "WIDTH", path), path);
+  const std::uint64_t height =
+      values.count("HEIGHT") ? whole("HEIGHT", *single(values, "HEIGHT", path), path) : 1;
+  const std::uint64_t points = width * height;
+  if (const auto p = single(values, "POINTS", path)) {
+    const std::uint64_t stated = whole("POINTS", *p, path);
+    if (stated != points) {
+      throw core::Error(path, "PCD header says POINTS " + std::to_string(stated) +
                                   " but WIDTH x HEIGHT = " + std::to_string(width) + " x " +
-                                  std::to_string(height) + " = " + std::to_string(h.points) +
+                                  std::to_string(height) + " = " + std::to_string(points) +
                                   ", expected them equal");
     }
   }
-  if (h.points > 0xffffffffULL) {
-    throw core::Error(path, "PCD header WIDTH x HEIGHT = " + std::to_string(h.points) +
+  if (points > 0xffffffffULL) {
+    throw core::Error(path, "PCD header WIDTH x HEIGHT = " + std::to_string(points) +
                                 " points, expected at most 4294967295");
   }
-  if (values.count("VIEWPOINT")) {
-    const auto& vp = values["VIEWPOINT"];
-    bool ok = vp.size() == 7;
-    for (const auto& v : vp) ok = ok && core::parse_finite_double(v).has_value();
-    if (!ok) {
-      throw core::Error(path, "PCD header VIEWPOINT is '" + join(vp) +
-                                  "', expected 7 finite numbers (tx ty tz qw qx qy qz)");
+  return points;
+}
+
+void check_viewpoint(const HeaderValues& values, const std::string& path) {
+  if (!values.count("VIEWPOINT")) return;
+  const auto& vp = values.at("VIEWPOINT");
+  bool ok = vp.size() == 7;
+  for (const auto& v : vp) ok = ok && core::parse_finite_double(v).has_value();
+  if (!ok) {
+    throw core::Error(path, "PCD header VIEWPOINT is '" + join(vp) +
+                                "', expected 7 finite numbers (tx ty tz qw qx qy qz)");
+  }
+}
+
+DataFormat data_format(const HeaderValues& values, const std::string& path) {
+  const auto data = *single(values, "DATA", path);
+  if (data == "ascii") return DataFormat::kAscii;
+  if (data == "binary") return DataFormat::kBinary;
+  if (data == "binary_compressed") return DataFormat::kBinaryCompressed;
+  throw core::Error(
+      path, "PCD header DATA is " + quote(data) + ", expected ascii, binary or binary_compressed");
+}
+
+// Reads and checks the header: every keyword's values, the lengths of FIELDS/SIZE/TYPE/COUNT,
+// WIDTH x HEIGHT == POINTS. Nothing is allocated from a header value here.
+PcdHeader parse_header(const std::string& bytes, const std::string& path) {
+  if (bytes.empty()) {
+    throw core::Error(path,
+                      "file is empty (0 bytes), expected a PCD header (VERSION, FIELDS, ...)");
+  }
+  PcdHeader h;
+  const HeaderValues values = read_header_lines(bytes, path, &h.data_offset);
+  for (const char* required : {"FIELDS", "SIZE", "TYPE", "WIDTH"}) {
+    if (!values.count(required)) {
+      throw core::Error(path, std::string("PCD header has no ") + required + " line");
     }
   }
-  const auto data = *single("DATA");
-  if (data == "ascii") {
-    h.data = DataFormat::kAscii;
-  } else if (data == "binary") {
-    h.data = DataFormat::kBinary;
-  } else if (data == "binary_compressed") {
-    h.data = DataFormat::kBinaryCompressed;
-  } else {
-    throw core::Error(path, "PCD header DATA is " + quote(data) +
-                                ", expected ascii, binary or binary_compressed");
-  }
+  parse_fields(values, path, &h);
+  h.points = point_count(values, path);
+  check_viewpoint(values, path);
+  h.data = data_format(values, path);
   return h;
 }
 

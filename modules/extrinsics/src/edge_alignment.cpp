@@ -237,6 +237,366 @@ std::string view_label(const TargetView& view, size_t i) {
   return view.name.empty() ? "view " + std::to_string(i) : view.name;
 }
 
+/// Fills result->views with each view's label, point count and, when it cannot be used, the
+/// reason; returns the indices of the usable views. Throws when none is usable.
+std::vector<size_t> label_views(const std::vector<TargetView>& views,
+                                const core::PinholeCamera& camera, EdgeAlignmentResult* result) {
+  result->views.resize(views.size());
+  std::vector<size_t> usable_index;
+  std::ostringstream reasons;
+  for (size_t i = 0; i < views.size(); ++i) {
+    ViewResidual& vr = result->views[i];
+    vr.name = view_label(views[i], i);
+    vr.num_points = static_cast<int>(views[i].lidar_circle_points.size());
+    vr.reason = usable_reason(views[i], camera);
+    vr.used = vr.reason.empty();
+    if (vr.used) {
+      usable_index.push_back(i);
+    } else {
+      reasons << vr.name << ": " << vr.reason << "; ";
+    }
+  }
+  if (usable_index.empty()) {
+    throw std::invalid_argument("align_edges: no usable view among " +
+                                std::to_string(views.size()) + " (" + reasons.str() + ")");
+  }
+  return usable_index;
+}
+
+/// result->T_camera_lidar_initial: the guess when one is given, else the closed-form guess
+/// over the usable views (throws when that fails).
+void set_initial_pose(const std::vector<TargetView>& views, const std::vector<size_t>& usable_index,
+                      const core::PinholeCamera& camera,
+                      const std::optional<Eigen::Isometry3d>& T_camera_lidar_guess,
+                      EdgeAlignmentResult* result) {
+  if (T_camera_lidar_guess) {
+    result->T_camera_lidar_initial = *T_camera_lidar_guess;
+    return;
+  }
+  // Copy the views only when some are unusable.
+  std::vector<TargetView> usable_views;
+  if (usable_index.size() != views.size()) {
+    for (size_t i : usable_index) usable_views.push_back(views[i]);
+  }
+  const InitialGuessResult guess =
+      closed_form_initial_guess(usable_views.empty() ? views : usable_views, camera);
+  if (!guess.ok) {
+    throw std::invalid_argument(
+        "align_edges: no initial guess given and the closed-form "
+        "guess failed: " +
+        guess.message);
+  }
+  result->T_camera_lidar_initial = guess.T_camera_lidar;
+  result->initial_from_closed_form = true;
+  core::log_info("extrinsics: closed-form initial guess (", guess.message, ")");
+  if (guess.ambiguous) {
+    result->initial_guess_ambiguity = guess.ambiguity;
+    core::log_warning("extrinsics: ", guess.ambiguity);
+  }
+}
+
+/// What the solves read of each usable view (indexed like usable_index).
+struct ViewFields {
+  std::vector<std::unique_ptr<SmoothView>> fields;
+  std::vector<std::unique_ptr<PaperPlaneLut>> luts;  ///< the paper's method only
+  // Coarse-to-fine (ours): every coarse_stride-th circle point of each view.
+  std::vector<std::vector<Eigen::Vector3d>> coarse_points;
+};
+
+ViewFields build_view_fields(const std::vector<TargetView>& views,
+                             const std::vector<size_t>& usable_index,
+                             const core::PinholeCamera& camera,
+                             const EdgeAlignmentOptions& options) {
+  const bool paper = options.method == EdgeAlignmentMethod::kPaperPlaneFit;
+  ViewFields out;
+  out.coarse_points.resize(usable_index.size());
+  for (size_t k = 0; k < usable_index.size(); ++k) {
+    const TargetView& v = views[usable_index[k]];
+    // The exact field also measures the per-view fit of the paper's method, so that both
+    // methods are reported on the same scale.
+    out.fields.push_back(std::make_unique<SmoothView>(v.image_edge_points_px, options.field));
+    if (paper) {
+      out.luts.push_back(std::make_unique<PaperPlaneLut>(v.image_edge_points_px, camera.width(),
+                                                         camera.height(), options.paper_window_px));
+    } else if (options.coarse_stride > 1) {
+      const auto& all = v.lidar_circle_points;
+      for (size_t i = 0; i < all.size(); i += static_cast<size_t>(options.coarse_stride))
+        out.coarse_points[k].push_back(all[i]);
+    }
+  }
+  return out;
+}
+
+/// The coarse stage (CenterResidual) from *x; returns its LM iterations (none when fewer
+/// than 3 holes pair up).
+int align_hole_centers(const std::vector<TargetView>& views,
+                       const std::vector<size_t>& usable_index, const ProjectionModel& cam,
+                       core::Vector6d* x) {
+  ceres::Problem problem;
+  int holes = 0;
+  // Holes paired by position at the start pose, not by the detectors' order.
+  const Eigen::Isometry3d T0 = core::from_vector6(*x);
+  for (size_t k : usable_index) {
+    const TargetView& v = views[k];
+    if (v.lidar_centers.size() > v.image_ellipses.size()) continue;
+    std::vector<Eigen::Vector2d> start_px;
+    for (const Eigen::Vector3d& c : v.lidar_centers) {
+      const Eigen::Vector3d pc = T0 * c;
+      Eigen::Vector2d p;
+      project_total(cam, pc.data(), p.data());
+      start_px.push_back(p);
+    }
+    const std::vector<size_t> pairing = pair_holes_by_position(start_px, v.image_ellipses);
+    for (size_t h = 0; h < start_px.size(); ++h) {
+      const cv::Point2f& c = v.image_ellipses[pairing[h]].center;
+      const Eigen::Vector2d px(c.x, c.y);
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CenterResidual, 2, 6>(
+                                   new CenterResidual(&cam, v.lidar_centers[h], px)),
+                               new ceres::HuberLoss(20.0), x->data());
+      ++holes;
+    }
+  }
+  if (holes < 3) return 0;  // fewer leave the pose unconstrained; go straight to Eq. (2)
+  ceres::Solver::Options o;
+  o.linear_solver_type = ceres::DENSE_QR;
+  o.max_num_iterations = 50;
+  o.logging_type = ceres::SILENT;
+  ceres::Solver::Summary s;
+  ceres::Solve(o, &problem, &s);
+  return s.num_successful_steps + s.num_unsuccessful_steps;
+}
+
+/// Ceres' Levenberg-Marquardt for Eq. (2).
+ceres::Solver::Options edge_solver_options(const EdgeAlignmentOptions& options) {
+  ceres::Solver::Options solver_options;
+  solver_options.minimizer_type = ceres::TRUST_REGION;
+  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  solver_options.max_num_iterations = options.max_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.gradient_tolerance = 1e-14;
+  solver_options.num_threads = 1;
+  solver_options.logging_type = ceres::SILENT;
+  return solver_options;
+}
+
+/// What every round of Eq. (2) reads.
+struct AlignmentProblem {
+  const std::vector<TargetView>& views;
+  const std::vector<size_t>& usable_index;
+  const ProjectionModel& cam;
+  const ViewFields& fields;
+  const EdgeAlignmentOptions& options;
+  const ceres::Solver::Options& solver_options;
+};
+
+/// The usable views across the outlier-rejection rounds (indexed like usable_index).
+struct RoundState {
+  explicit RoundState(size_t n)
+      : active(n, true), sum2_of_view(n, 0.0), count_of_view(n, 0), fit_at_x(n) {}
+  std::vector<bool> active;
+  std::vector<double> sum2_of_view;
+  std::vector<size_t> count_of_view;
+  // Fit of each view at this round's x, when the polish left it.
+  std::vector<detail::PointFit> fit_at_x;
+};
+
+/// One round of Eq. (2), ours coarse-to-fine, from *x over the active views: fills
+/// state->fit_at_x and *have_fit for them; returns the solve's report.
+std::string solve_coarse_then_polish(const AlignmentProblem& p, RoundState* state,
+                                     std::vector<bool>* have_fit, core::Vector6d* x,
+                                     EdgeAlignmentResult* result) {
+  const EdgeAlignmentOptions& options = p.options;
+  // Ceres' full LM from the (possibly poor) start on the coarse subset ...
+  ceres::Problem problem;
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    if (!state->active[k] || p.fields.coarse_points[k].empty()) continue;
+    problem.AddResidualBlock(new ViewEdgeCost(&p.cam, p.fields.fields[k].get(),
+                                              &p.fields.coarse_points[k], options.huber_px),
+                             nullptr, x->data());
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(p.solver_options, &problem, &summary);
+  result->iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+  // ... then our LM polishes on all points from inside the basin, with the same
+  // relative-step and gradient tolerances, on 6x6 normal equations accumulated point by
+  // point; its last evaluation also gives the per-view fit and the covariance's J^T J.
+  std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+  std::vector<const ViewEdgeCost*> cost_pointers;
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    if (!state->active[k]) continue;
+    costs.push_back(std::make_unique<ViewEdgeCost>(&p.cam, p.fields.fields[k].get(),
+                                                   &p.views[p.usable_index[k]].lidar_circle_points,
+                                                   options.huber_px));
+    cost_pointers.push_back(costs.back().get());
+  }
+  detail::PolishOptions polish_options;
+  polish_options.max_iterations = options.max_iterations;
+  polish_options.parameter_tolerance = options.parameter_tolerance;
+  polish_options.gradient_tolerance = p.solver_options.gradient_tolerance;
+  polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
+  detail::PolishResult polished = detail::polish(cost_pointers, *x, polish_options);
+  *x = polished.x;
+  result->iterations += polished.iterations;
+  result->converged = summary.termination_type == ceres::CONVERGENCE && polished.converged;
+  size_t j = 0;
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    if (!state->active[k]) continue;
+    state->fit_at_x[k] = std::move(polished.fits[j]);
+    (*have_fit)[k] = true;
+    ++j;
+  }
+  std::ostringstream report;
+  report << "coarse: " << summary.BriefReport() << "; all points: " << polished.iterations
+         << " iterations, cost " << polished.initial_cost << " -> " << polished.final_cost
+         << (polished.converged ? ", converged" : ", hit max_iterations");
+  return report.str();
+}
+
+/// One round of Eq. (2) on all points of the active views (ours without the coarse stage,
+/// or the paper's plane-fit LUT) from *x; returns the solve's report.
+std::string solve_all_points(const AlignmentProblem& p, const RoundState& state, core::Vector6d* x,
+                             EdgeAlignmentResult* result) {
+  const bool paper = p.options.method == EdgeAlignmentMethod::kPaperPlaneFit;
+  ceres::Problem problem;
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    if (!state.active[k]) continue;
+    const auto& points = p.views[p.usable_index[k]].lidar_circle_points;
+    if (paper) {
+      for (const auto& point : points) {
+        problem.AddResidualBlock(
+            new ceres::NumericDiffCostFunction<PaperEdgeResidual, ceres::CENTRAL, 1, 6>(
+                new PaperEdgeResidual(&p.cam, p.fields.luts[k].get(), point)),
+            nullptr, x->data());
+      }
+    } else {
+      problem.AddResidualBlock(
+          new ViewEdgeCost(&p.cam, p.fields.fields[k].get(), &points, p.options.huber_px), nullptr,
+          x->data());
+    }
+  }
+  ceres::Solver::Summary summary;
+  ceres::Solve(p.solver_options, &problem, &summary);
+  result->iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
+  result->converged = summary.termination_type == ceres::CONVERGENCE;
+  return summary.BriefReport();
+}
+
+/// Every usable view's fit at x: its residual in result->views, its sums in *state; returns
+/// each view's RMS edge distance.
+std::vector<double> measure_view_fits(const AlignmentProblem& p, const std::vector<bool>& have_fit,
+                                      const core::Vector6d& x, RoundState* state,
+                                      EdgeAlignmentResult* result) {
+  std::vector<double> rms(p.usable_index.size(), 0.0);
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    const TargetView& v = p.views[p.usable_index[k]];
+    // The polish's last evaluation has the fit of the active views at x; the others (and
+    // the paper's method) take one pass here.
+    if (!have_fit[k]) {
+      state->fit_at_x[k] = fit_of_view(v.lidar_circle_points, *p.fields.fields[k], p.cam,
+                                       p.options.huber_px, x, nullptr);
+    }
+    const detail::PointFit& fit = state->fit_at_x[k];
+    double sum2 = 0.0;
+    for (double d : fit.distances_px) sum2 += d * d;
+    state->sum2_of_view[k] = sum2;
+    state->count_of_view[k] = fit.distances_px.size();
+    rms[k] = std::sqrt(sum2 / std::max<size_t>(1, fit.distances_px.size()));
+    ViewResidual& vr = result->views[p.usable_index[k]];
+    vr.rms_px = rms[k];
+    vr.median_px = median_of(fit.distances_px);
+    vr.num_in_image = fit.in_image;
+  }
+  return rms;
+}
+
+/// The active view that fits worst beyond the limits (index into usable_index, -1 if none).
+struct WorstView {
+  int index = -1;
+  std::string reason;
+};
+
+WorstView find_worst_view(const AlignmentProblem& p, const RoundState& state,
+                          const std::vector<double>& rms, const EdgeAlignmentResult& result) {
+  const EdgeAlignmentOptions& options = p.options;
+  std::vector<double> active_rms;
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    if (state.active[k]) active_rms.push_back(rms[k]);
+  }
+  const double median_rms = median_of(active_rms);
+  const double limit = std::max(options.outlier_min_rms_px, options.outlier_rms_ratio * median_rms);
+  WorstView worst;
+  double worst_score = 0.0;
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    if (!state.active[k]) continue;
+    const ViewResidual& vr = result.views[p.usable_index[k]];
+    const double in_fraction = vr.num_points ? double(vr.num_in_image) / vr.num_points : 0.0;
+    std::ostringstream why;
+    double score = 0.0;
+    if (in_fraction < options.min_in_image_fraction) {
+      why << "only " << vr.num_in_image << " of " << vr.num_points
+          << " LIDAR circle points project into the image at the solution";
+      score = std::numeric_limits<double>::max();
+    } else if (rms[k] > limit) {
+      why.precision(3);
+      why << "RMS edge distance " << rms[k] << " px exceeds " << limit
+          << " px (max of outlier_min_rms_px and " << options.outlier_rms_ratio << " x median "
+          << median_rms << " px): its image edges do not match its LIDAR circle";
+      score = rms[k] / limit;
+    }
+    if (score > worst_score) {
+      worst_score = score;
+      worst.index = static_cast<int>(k);
+      worst.reason = why.str();
+    }
+  }
+  return worst;
+}
+
+/// Takes the worst view out of the solve and records why; false (and the reason in
+/// *message) when it is the only active view left.
+bool reject_view(const WorstView& worst, const std::vector<size_t>& usable_index, RoundState* state,
+                 EdgeAlignmentResult* result, std::ostringstream* message) {
+  const long n_active = std::count(state->active.begin(), state->active.end(), true);
+  if (n_active <= 1) {
+    *message << "the only remaining view is poor (" << worst.reason << "); ";
+    return false;
+  }
+  state->active[worst.index] = false;
+  ViewResidual& vr = result->views[usable_index[worst.index]];
+  vr.used = false;
+  vr.reason = worst.reason;
+  core::log_warning("extrinsics: rejected ", vr.name, ": ", worst.reason);
+  *message << "rejected " << vr.name << "; ";
+  return true;
+}
+
+/// result->rms_px over the active views' points (the fit of the last round, at the
+/// solution); returns their count.
+size_t set_overall_rms(const RoundState& state, EdgeAlignmentResult* result) {
+  double sum2 = 0.0;
+  size_t count = 0;
+  for (size_t k = 0; k < state.active.size(); ++k) {
+    if (!state.active[k]) continue;
+    sum2 += state.sum2_of_view[k];  // the fit of the last round, at this x
+    count += state.count_of_view[k];
+  }
+  result->rms_px = count ? std::sqrt(sum2 / count) : 0.0;
+  return count;
+}
+
+void set_covariance(const AlignmentProblem& p, const RoundState& state, const core::Vector6d& x,
+                    EdgeAlignmentResult* result, std::ostringstream* message) {
+  result->covariance_terms = covariance_at_solution(p.views, p.usable_index, state.active,
+                                                    p.fields.fields, p.cam, x, p.options);
+  result->covariance = result->covariance_terms.total;
+  result->covariance_valid = result->covariance_terms.valid;
+  if (!result->covariance_valid) {
+    *message << "covariance rank-deficient (a direction is unobservable); ";
+  }
+}
+
 }  // namespace
 
 std::string to_string(EdgeAlignmentMethod method) {
@@ -259,13 +619,16 @@ std::string EdgeAlignmentOptions::validate() const {
   if (!(step_tolerance_sigma >= 0.0))
     os << "step_tolerance_sigma = " << step_tolerance_sigma << ", expected >= 0; ";
   if (paper_window_px < 2) os << "paper_window_px = " << paper_window_px << ", expected >= 2; ";
-  if (!(outlier_rms_ratio > 1.0)) os << "outlier_rms_ratio = " << outlier_rms_ratio << ", expected > 1; ";
-  if (!(outlier_min_rms_px > 0.0)) os << "outlier_min_rms_px = " << outlier_min_rms_px << ", expected > 0; ";
+  if (!(outlier_rms_ratio > 1.0))
+    os << "outlier_rms_ratio = " << outlier_rms_ratio << ", expected > 1; ";
+  if (!(outlier_min_rms_px > 0.0))
+    os << "outlier_min_rms_px = " << outlier_min_rms_px << ", expected > 0; ";
   if (!(min_in_image_fraction >= 0.0 && min_in_image_fraction <= 1.0))
     os << "min_in_image_fraction = " << min_in_image_fraction << ", expected in [0, 1]; ";
   if (coarse_stride < 1) os << "coarse_stride = " << coarse_stride << ", expected >= 1; ";
   os << field.validate();
-  if (const std::string why = covariance_model.validate(); !why.empty()) os << "covariance_model: " << why << "; ";
+  if (const std::string why = covariance_model.validate(); !why.empty())
+    os << "covariance_model: " << why << "; ";
   return os.str();
 }
 
@@ -285,279 +648,42 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     throw std::invalid_argument("align_edges: invalid options: " + why);
   }
   EdgeAlignmentResult result;
-  result.views.resize(views.size());
-  std::vector<size_t> usable_index;
-  std::ostringstream reasons;
-  for (size_t i = 0; i < views.size(); ++i) {
-    ViewResidual& vr = result.views[i];
-    vr.name = view_label(views[i], i);
-    vr.num_points = static_cast<int>(views[i].lidar_circle_points.size());
-    vr.reason = usable_reason(views[i], camera);
-    vr.used = vr.reason.empty();
-    if (vr.used) {
-      usable_index.push_back(i);
-    } else {
-      reasons << vr.name << ": " << vr.reason << "; ";
-    }
-  }
-  if (usable_index.empty()) {
-    throw std::invalid_argument("align_edges: no usable view among " +
-                                std::to_string(views.size()) + " (" + reasons.str() + ")");
-  }
-
-  if (T_camera_lidar_guess) {
-    result.T_camera_lidar_initial = *T_camera_lidar_guess;
-  } else {
-    // Copy the views only when some are unusable.
-    std::vector<TargetView> usable_views;
-    if (usable_index.size() != views.size()) {
-      for (size_t i : usable_index) usable_views.push_back(views[i]);
-    }
-    const InitialGuessResult guess =
-        closed_form_initial_guess(usable_views.empty() ? views : usable_views, camera);
-    if (!guess.ok) {
-      throw std::invalid_argument("align_edges: no initial guess given and the closed-form "
-                                  "guess failed: " + guess.message);
-    }
-    result.T_camera_lidar_initial = guess.T_camera_lidar;
-    result.initial_from_closed_form = true;
-    core::log_info("extrinsics: closed-form initial guess (", guess.message, ")");
-    if (guess.ambiguous) {
-      result.initial_guess_ambiguity = guess.ambiguity;
-      core::log_warning("extrinsics: ", guess.ambiguity);
-    }
-  }
+  const std::vector<size_t> usable_index = label_views(views, camera, &result);
+  set_initial_pose(views, usable_index, camera, T_camera_lidar_guess, &result);
 
   const ProjectionModel cam = detail::make_projection_model(camera);
   const bool paper = options.method == EdgeAlignmentMethod::kPaperPlaneFit;
-  std::vector<std::unique_ptr<SmoothView>> fields;
-  std::vector<std::unique_ptr<PaperPlaneLut>> luts;
-  // Coarse-to-fine (ours): every coarse_stride-th circle point of each view.
-  std::vector<std::vector<Eigen::Vector3d>> coarse_points(usable_index.size());
-  for (size_t k = 0; k < usable_index.size(); ++k) {
-    const TargetView& v = views[usable_index[k]];
-    // The exact field also measures the per-view fit of the paper's method, so that both
-    // methods are reported on the same scale.
-    fields.push_back(std::make_unique<SmoothView>(v.image_edge_points_px, options.field));
-    if (paper) {
-      luts.push_back(std::make_unique<PaperPlaneLut>(v.image_edge_points_px, camera.width(),
-                                                     camera.height(), options.paper_window_px));
-    } else if (options.coarse_stride > 1) {
-      const auto& all = v.lidar_circle_points;
-      for (size_t i = 0; i < all.size(); i += static_cast<size_t>(options.coarse_stride))
-        coarse_points[k].push_back(all[i]);
-    }
-  }
-
+  const ViewFields fields = build_view_fields(views, usable_index, camera, options);
   core::Vector6d x = core::to_vector6(result.T_camera_lidar_initial);
   if (options.coarse_center_stage && !paper) {
-    ceres::Problem problem;
-    int holes = 0;
-    // Holes paired by position at the start pose, not by the detectors' order.
-    const Eigen::Isometry3d T0 = core::from_vector6(x);
-    for (size_t k : usable_index) {
-      const TargetView& v = views[k];
-      if (v.lidar_centers.size() > v.image_ellipses.size()) continue;
-      std::vector<Eigen::Vector2d> start_px;
-      for (const Eigen::Vector3d& c : v.lidar_centers) {
-        const Eigen::Vector3d pc = T0 * c;
-        Eigen::Vector2d p;
-        project_total(cam, pc.data(), p.data());
-        start_px.push_back(p);
-      }
-      const std::vector<size_t> pairing = pair_holes_by_position(start_px, v.image_ellipses);
-      for (size_t h = 0; h < start_px.size(); ++h) {
-        const cv::Point2f& c = v.image_ellipses[pairing[h]].center;
-        const Eigen::Vector2d px(c.x, c.y);
-        problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CenterResidual, 2, 6>(
-                                     new CenterResidual(&cam, v.lidar_centers[h], px)),
-                                 new ceres::HuberLoss(20.0), x.data());
-        ++holes;
-      }
-    }
-    if (holes >= 3) {  // fewer leave the pose unconstrained; go straight to Eq. (2)
-      ceres::Solver::Options o;
-      o.linear_solver_type = ceres::DENSE_QR;
-      o.max_num_iterations = 50;
-      o.logging_type = ceres::SILENT;
-      ceres::Solver::Summary s;
-      ceres::Solve(o, &problem, &s);
-      result.iterations += s.num_successful_steps + s.num_unsuccessful_steps;
-    }
+    result.iterations += align_hole_centers(views, usable_index, cam, &x);
   }
 
-  ceres::Solver::Options solver_options;
-  solver_options.minimizer_type = ceres::TRUST_REGION;
-  solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
-  solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.gradient_tolerance = 1e-14;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
-
-  std::vector<bool> active(usable_index.size(), true);
-  std::vector<double> sum2_of_view(usable_index.size(), 0.0);
-  std::vector<size_t> count_of_view(usable_index.size(), 0);
-  // Fit of each view at this round's x, when the polish left it.
-  std::vector<detail::PointFit> fit_at_x(usable_index.size());
-  ceres::Solver::Summary summary;
+  const ceres::Solver::Options solver_options = edge_solver_options(options);
+  const AlignmentProblem problem{views, usable_index, cam, fields, options, solver_options};
+  // Eq. (2) on the coarse subset brings the pose near the minimum at a fraction of the
+  // cost per iteration; the full set then only has to polish it (a few iterations).
+  const bool coarse_first = !paper && options.coarse_stride > 1;
+  RoundState state(usable_index.size());
   std::string polish_report;
   std::ostringstream message;
   for (int round = 0;; ++round) {
     std::vector<bool> have_fit(usable_index.size(), false);
-    // Eq. (2) on the coarse subset brings the pose near the minimum at a fraction of the
-    // cost per iteration; the full set then only has to polish it (a few iterations).
-    const bool coarse_first = !paper && options.coarse_stride > 1;
-    if (coarse_first) {
-      // Ceres' full LM from the (possibly poor) start on the coarse subset ...
-      ceres::Problem problem;
-      for (size_t k = 0; k < usable_index.size(); ++k) {
-        if (!active[k] || coarse_points[k].empty()) continue;
-        problem.AddResidualBlock(
-            new ViewEdgeCost(&cam, fields[k].get(), &coarse_points[k], options.huber_px), nullptr,
-            x.data());
-      }
-      ceres::Solve(solver_options, &problem, &summary);
-      result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
-      // ... then our LM polishes on all points from inside the basin, with the same
-      // relative-step and gradient tolerances, on 6x6 normal equations accumulated point by
-      // point; its last evaluation also gives the per-view fit and the covariance's J^T J.
-      std::vector<std::unique_ptr<ViewEdgeCost>> costs;
-      std::vector<const ViewEdgeCost*> cost_pointers;
-      for (size_t k = 0; k < usable_index.size(); ++k) {
-        if (!active[k]) continue;
-        costs.push_back(std::make_unique<ViewEdgeCost>(
-            &cam, fields[k].get(), &views[usable_index[k]].lidar_circle_points, options.huber_px));
-        cost_pointers.push_back(costs.back().get());
-      }
-      detail::PolishOptions polish_options;
-      polish_options.max_iterations = options.max_iterations;
-      polish_options.parameter_tolerance = options.parameter_tolerance;
-      polish_options.gradient_tolerance = solver_options.gradient_tolerance;
-      polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
-      detail::PolishResult polished = detail::polish(cost_pointers, x, polish_options);
-      x = polished.x;
-      result.iterations += polished.iterations;
-      result.converged = summary.termination_type == ceres::CONVERGENCE && polished.converged;
-      size_t j = 0;
-      for (size_t k = 0; k < usable_index.size(); ++k) {
-        if (!active[k]) continue;
-        fit_at_x[k] = std::move(polished.fits[j]);
-        have_fit[k] = true;
-        ++j;
-      }
-      std::ostringstream report;
-      report << "coarse: " << summary.BriefReport() << "; all points: " << polished.iterations
-             << " iterations, cost " << polished.initial_cost << " -> " << polished.final_cost
-             << (polished.converged ? ", converged" : ", hit max_iterations");
-      polish_report = report.str();
-    } else {
-      ceres::Problem problem;
-      for (size_t k = 0; k < usable_index.size(); ++k) {
-        if (!active[k]) continue;
-        const auto& points = views[usable_index[k]].lidar_circle_points;
-        if (paper) {
-          for (const auto& p : points) {
-            problem.AddResidualBlock(
-                new ceres::NumericDiffCostFunction<PaperEdgeResidual, ceres::CENTRAL, 1, 6>(
-                    new PaperEdgeResidual(&cam, luts[k].get(), p)),
-                nullptr, x.data());
-          }
-        } else {
-          problem.AddResidualBlock(new ViewEdgeCost(&cam, fields[k].get(), &points, options.huber_px),
-                                   nullptr, x.data());
-        }
-      }
-      ceres::Solve(solver_options, &problem, &summary);
-      result.iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
-      result.converged = summary.termination_type == ceres::CONVERGENCE;
-      polish_report = summary.BriefReport();
-    }
-
+    polish_report = coarse_first ? solve_coarse_then_polish(problem, &state, &have_fit, &x, &result)
+                                 : solve_all_points(problem, state, &x, &result);
     // Per-view fit at this solution; reject the worst outlier view, if any, and re-solve.
-    std::vector<double> rms(usable_index.size(), 0.0);
-    std::vector<double> active_rms;
-    for (size_t k = 0; k < usable_index.size(); ++k) {
-      const TargetView& v = views[usable_index[k]];
-      // The polish's last evaluation has the fit of the active views at x; the others (and
-      // the paper's method) take one pass here.
-      if (!have_fit[k]) {
-        fit_at_x[k] = fit_of_view(v.lidar_circle_points, *fields[k], cam, options.huber_px, x, nullptr);
-      }
-      const detail::PointFit& fit = fit_at_x[k];
-      double sum2 = 0.0;
-      for (double d : fit.distances_px) sum2 += d * d;
-      sum2_of_view[k] = sum2;
-      count_of_view[k] = fit.distances_px.size();
-      rms[k] = std::sqrt(sum2 / std::max<size_t>(1, fit.distances_px.size()));
-      ViewResidual& vr = result.views[usable_index[k]];
-      vr.rms_px = rms[k];
-      vr.median_px = median_of(fit.distances_px);
-      vr.num_in_image = fit.in_image;
-      if (active[k]) active_rms.push_back(rms[k]);
-    }
+    const std::vector<double> rms = measure_view_fits(problem, have_fit, x, &state, &result);
     if (!options.reject_outlier_views) break;
-    const double median_rms = median_of(active_rms);
-    const double limit = std::max(options.outlier_min_rms_px, options.outlier_rms_ratio * median_rms);
-    int worst = -1;
-    std::string worst_reason;
-    double worst_score = 0.0;
-    for (size_t k = 0; k < usable_index.size(); ++k) {
-      if (!active[k]) continue;
-      const ViewResidual& vr = result.views[usable_index[k]];
-      const double in_fraction = vr.num_points ? double(vr.num_in_image) / vr.num_points : 0.0;
-      std::ostringstream why;
-      double score = 0.0;
-      if (in_fraction < options.min_in_image_fraction) {
-        why << "only " << vr.num_in_image << " of " << vr.num_points
-            << " LIDAR circle points project into the image at the solution";
-        score = std::numeric_limits<double>::max();
-      } else if (rms[k] > limit) {
-        why.precision(3);
-        why << "RMS edge distance " << rms[k] << " px exceeds " << limit
-            << " px (max of outlier_min_rms_px and " << options.outlier_rms_ratio
-            << " x median " << median_rms
-            << " px): its image edges do not match its LIDAR circle";
-        score = rms[k] / limit;
-      }
-      if (score > worst_score) {
-        worst_score = score;
-        worst = static_cast<int>(k);
-        worst_reason = why.str();
-      }
-    }
-    const long n_active = std::count(active.begin(), active.end(), true);
-    if (worst < 0) break;
-    if (n_active <= 1) {
-      message << "the only remaining view is poor (" << worst_reason << "); ";
-      break;
-    }
-    active[worst] = false;
-    ViewResidual& vr = result.views[usable_index[worst]];
-    vr.used = false;
-    vr.reason = worst_reason;
-    core::log_warning("extrinsics: rejected ", vr.name, ": ", worst_reason);
-    message << "rejected " << vr.name << "; ";
+    const WorstView worst = find_worst_view(problem, state, rms, result);
+    if (worst.index < 0) break;
+    if (!reject_view(worst, usable_index, &state, &result, &message)) break;
     if (round > static_cast<int>(usable_index.size())) break;
   }
 
   result.T_camera_lidar = core::from_vector6(x);
-  double sum2 = 0.0;
-  size_t count = 0;
-  for (size_t k = 0; k < usable_index.size(); ++k) {
-    if (!active[k]) continue;
-    sum2 += sum2_of_view[k];  // the fit of the last round, at this x
-    count += count_of_view[k];
-  }
-  result.rms_px = count ? std::sqrt(sum2 / count) : 0.0;
-
+  const size_t count = set_overall_rms(state, &result);
   if (options.compute_covariance && count > 6) {
-    result.covariance_terms = covariance_at_solution(views, usable_index, active, fields, cam, x, options);
-    result.covariance = result.covariance_terms.total;
-    result.covariance_valid = result.covariance_terms.valid;
-    if (!result.covariance_valid) message << "covariance rank-deficient (a direction is unobservable); ";
+    set_covariance(problem, state, x, &result, &message);
   }
 
   message << (paper ? "paper plane-fit LUT" : "smooth field") << ", " << polish_report;

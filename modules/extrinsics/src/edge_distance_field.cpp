@@ -57,24 +57,18 @@ inline void claim_tile_row(float u0, float dv2, int i, float* d2s, int* owners) 
 #endif
 }
 
-}  // namespace
+/// The grid's bounding box: the edge points' with band_px + 2 px around [px].
+struct GridBox {
+  int col_begin = 0, row_begin = 0, cols = 0, rows = 0;
+  // Grid pixel of point p, rounded (coordinates relative to the grid are >= margin > 0, so
+  // truncating x + 0.5 rounds like lround, without the libm call).
+  int pixel_c(const Eigen::Vector2d& p) const { return static_cast<int>(p.x() - col_begin + 0.5); }
+  int pixel_r(const Eigen::Vector2d& p) const { return static_cast<int>(p.y() - row_begin + 0.5); }
+};
 
-std::string EdgeFieldOptions::validate() const {
-  std::ostringstream os;
-  if (!(band_px >= 5.0)) os << "band_px = " << band_px << ", expected >= 5; ";
-  if (!(normal_radius_px > 0.5)) os << "normal_radius_px = " << normal_radius_px << ", expected > 0.5; ";
-  if (max_nodes < 16) os << "max_nodes = " << max_nodes << ", expected >= 16; ";
-  return os.str();
-}
-
-EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_points_px,
-                                     const EdgeFieldOptions& options) {
-  if (const std::string why = options.validate(); !why.empty()) {
-    throw std::invalid_argument("EdgeDistanceField: invalid options: " + why);
-  }
-  if (edge_points_px.empty()) {
-    throw std::invalid_argument("EdgeDistanceField: no edge points (expected at least one)");
-  }
+/// Throws for non-finite points and for a box of more than max_nodes nodes.
+GridBox band_box(const std::vector<Eigen::Vector2d>& edge_points_px,
+                 const EdgeFieldOptions& options) {
   Eigen::Vector2d lo = edge_points_px.front(), hi = lo;
   for (const auto& p : edge_points_px) {
     if (!p.allFinite()) {
@@ -84,45 +78,65 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     hi = hi.cwiseMax(p);
   }
   const double margin = options.band_px + 2.0;
-  col_begin_ = static_cast<int>(std::floor(lo.x() - margin));
-  row_begin_ = static_cast<int>(std::floor(lo.y() - margin));
-  cols_ = static_cast<int>(std::ceil(hi.x() + margin)) - col_begin_ + 1;
-  rows_ = static_cast<int>(std::ceil(hi.y() + margin)) - row_begin_ + 1;
-  if (static_cast<long>(cols_) * rows_ > options.max_nodes) {
+  GridBox box;
+  box.col_begin = static_cast<int>(std::floor(lo.x() - margin));
+  box.row_begin = static_cast<int>(std::floor(lo.y() - margin));
+  box.cols = static_cast<int>(std::ceil(hi.x() + margin)) - box.col_begin + 1;
+  box.rows = static_cast<int>(std::ceil(hi.y() + margin)) - box.row_begin + 1;
+  if (static_cast<long>(box.cols) * box.rows > options.max_nodes) {
     std::ostringstream os;
-    os << "EdgeDistanceField: edge points span " << cols_ << " x " << rows_
+    os << "EdgeDistanceField: edge points span " << box.cols << " x " << box.rows
        << " px with the band, more than max_nodes = " << options.max_nodes
        << " (stray edge points far from the target?)";
     throw std::invalid_argument(os.str());
   }
-  const int n = static_cast<int>(edge_points_px.size());
-  // Grid pixel of point i, rounded (coordinates relative to the grid are >= margin > 0, so
-  // truncating x + 0.5 rounds like lround, without the libm call).
-  const auto pixel_c = [&](int i) { return static_cast<int>(edge_points_px[i].x() - col_begin_ + 0.5); };
-  const auto pixel_r = [&](int i) { return static_cast<int>(edge_points_px[i].y() - row_begin_ + 0.5); };
+  return box;
+}
 
-  // Bucket the points in 4 x 4 px cells (linked lists), for the neighbour searches.
-  constexpr int kCell = 4;
-  const int cell_cols = cols_ / kCell + 1, cell_rows = rows_ / kCell + 1;
-  std::vector<int> head(static_cast<size_t>(cell_cols) * cell_rows, -1), next(n, -1);
-  for (int i = 0; i < n; ++i) {
-    const int c = pixel_c(i), r = pixel_r(i);
-    const size_t idx = static_cast<size_t>(r / kCell) * cell_cols + c / kCell;
-    next[i] = head[idx];
-    head[idx] = i;
+/// The points bucketed in 4 x 4 px cells (linked lists), for the neighbour searches.
+class PointBuckets {
+ public:
+  PointBuckets(const std::vector<Eigen::Vector2d>& points, const GridBox& box)
+      : box_(box),
+        cell_cols_(box.cols / kCell + 1),
+        cell_rows_(box.rows / kCell + 1),
+        head_(static_cast<size_t>(cell_cols_) * cell_rows_, -1),
+        next_(points.size(), -1) {
+    const int n = static_cast<int>(points.size());
+    for (int i = 0; i < n; ++i) {
+      const int c = box.pixel_c(points[i]), r = box.pixel_r(points[i]);
+      const size_t idx = static_cast<size_t>(r / kCell) * cell_cols_ + c / kCell;
+      next_[i] = head_[idx];
+      head_[idx] = i;
+    }
   }
   // Calls fn(i) for (at least) every point within `reach` px of grid pixel (c0, r0).
-  auto for_points_near = [&](int c0, int r0, int reach, auto&& fn) {
-    const int r_lo = std::max(0, r0 - reach) / kCell, r_hi = std::min(rows_ - 1, r0 + reach) / kCell;
-    const int c_lo = std::max(0, c0 - reach) / kCell, c_hi = std::min(cols_ - 1, c0 + reach) / kCell;
+  template <typename Fn>
+  void for_points_near(int c0, int r0, int reach, Fn&& fn) const {
+    const int r_lo = std::max(0, r0 - reach) / kCell,
+              r_hi = std::min(box_.rows - 1, r0 + reach) / kCell;
+    const int c_lo = std::max(0, c0 - reach) / kCell,
+              c_hi = std::min(box_.cols - 1, c0 + reach) / kCell;
     for (int r = r_lo; r <= r_hi; ++r) {
       for (int c = c_lo; c <= c_hi; ++c) {
-        for (int i = head[static_cast<size_t>(r) * cell_cols + c]; i >= 0; i = next[i]) fn(i);
+        for (int i = head_[static_cast<size_t>(r) * cell_cols_ + c]; i >= 0; i = next_[i]) fn(i);
       }
     }
-  };
+  }
 
-  // Edge normals: smallest principal direction of the neighbours within normal_radius_px.
+ private:
+  static constexpr int kCell = 4;
+  GridBox box_;
+  int cell_cols_, cell_rows_;
+  std::vector<int> head_, next_;
+};
+
+/// Edge normals: smallest principal direction of the neighbours within normal_radius_px
+/// (zero where there is no line: isolated points, blobs).
+std::vector<Eigen::Vector2d> edge_normals(const std::vector<Eigen::Vector2d>& edge_points_px,
+                                          const GridBox& box, const EdgeFieldOptions& options) {
+  const PointBuckets buckets(edge_points_px, box);
+  const int n = static_cast<int>(edge_points_px.size());
   std::vector<Eigen::Vector2d> normals(n, Eigen::Vector2d::Zero());
   const int reach = static_cast<int>(std::ceil(options.normal_radius_px));
   const double radius2 = options.normal_radius_px * options.normal_radius_px;
@@ -131,7 +145,7 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
     int count = 0;
-    for_points_near(pixel_c(i), pixel_r(i), reach, [&](int j) {
+    buckets.for_points_near(box.pixel_c(p), box.pixel_r(p), reach, [&](int j) {
       const Eigen::Vector2d q = edge_points_px[j] - p;  // relative: no cancellation
       if (q.squaredNorm() > radius2) return;
       mean += q;
@@ -153,72 +167,117 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
     if (v.squaredNorm() == 0.0) continue;  // all neighbours coincide: no direction
     normals[i] = v.normalized();
   }
+  return normals;
+}
 
-  // Tiles that hold band nodes: those overlapping some point's (2 band + 1)^2 square.
-  const int band = static_cast<int>(std::ceil(options.band_px));
-  const double band2 = options.band_px * options.band_px;
-  tile_cols_ = (cols_ + kTile - 1) >> kTileShift;
-  tile_rows_ = (rows_ + kTile - 1) >> kTileShift;
-  tile_slot_.assign(static_cast<size_t>(tile_cols_) * tile_rows_, -1);
-  struct Square {
-    int c_lo, c_hi, r_lo, r_hi;
-  };
-  std::vector<Square> squares(n);
-  for (int i = 0; i < n; ++i) {
-    const int c0 = pixel_c(i), r0 = pixel_r(i);
-    Square& q = squares[i];
-    q = {std::max(0, c0 - band), std::min(cols_ - 1, c0 + band), std::max(0, r0 - band),
-         std::min(rows_ - 1, r0 + band)};
-    for (int tr = q.r_lo >> kTileShift; tr <= q.r_hi >> kTileShift; ++tr)
-      for (int tc = q.c_lo >> kTileShift; tc <= q.c_hi >> kTileShift; ++tc)
-        tile_slot_[static_cast<size_t>(tr) * tile_cols_ + tc] = 0;
+/// A point's (2 band + 1)^2 square of grid pixels, clipped to the grid.
+struct Square {
+  int c_lo, c_hi, r_lo, r_hi;
+};
+
+std::vector<Square> band_squares(const std::vector<Eigen::Vector2d>& edge_points_px,
+                                 const GridBox& box, int band) {
+  std::vector<Square> squares(edge_points_px.size());
+  for (size_t i = 0; i < edge_points_px.size(); ++i) {
+    const int c0 = box.pixel_c(edge_points_px[i]), r0 = box.pixel_r(edge_points_px[i]);
+    squares[i] = {std::max(0, c0 - band), std::min(box.cols - 1, c0 + band), std::max(0, r0 - band),
+                  std::min(box.rows - 1, r0 + band)};
   }
-  int num_tiles = 0;
-  for (int& slot : tile_slot_) slot = slot == 0 ? num_tiles++ : -1;
-  const size_t num_nodes = static_cast<size_t>(num_tiles) * kTileNodes;
+  return squares;
+}
 
-  // Exact nearest edge point of every node within band_px of an edge: each point claims
-  // the nodes of its square that it is nearest to (ties to the lower index). The square's
-  // rows are widened to whole tile rows (8 contiguous nodes, vectorised); nodes claimed
-  // from beyond band_px are dropped below (their nearest point may not have visited them).
-  static_assert(kTile == 8, "claim_tile_row() handles rows of 8 nodes");
-  std::vector<int> nearest(num_nodes, -1);
-  std::vector<float> nearest_d2(num_nodes, std::numeric_limits<float>::infinity());
+/// The tiles of 2^shift x 2^shift nodes over the box; slot maps a tile to its block of
+/// stored nodes, or -1.
+struct TileLayout {
+  int shift = 0, cols = 0, rows = 0, count = 0;
+  std::vector<int> slot;
+  int size() const { return 1 << shift; }
+  int nodes() const { return size() * size(); }
+};
+
+/// Tiles that hold band nodes: those overlapping some point's square.
+TileLayout band_tiles(const std::vector<Square>& squares, const GridBox& box, int shift) {
+  TileLayout tiles;
+  tiles.shift = shift;
+  tiles.cols = (box.cols + tiles.size() - 1) >> shift;
+  tiles.rows = (box.rows + tiles.size() - 1) >> shift;
+  tiles.slot.assign(static_cast<size_t>(tiles.cols) * tiles.rows, -1);
+  for (const Square& q : squares) {
+    for (int tr = q.r_lo >> shift; tr <= q.r_hi >> shift; ++tr)
+      for (int tc = q.c_lo >> shift; tc <= q.c_hi >> shift; ++tc)
+        tiles.slot[static_cast<size_t>(tr) * tiles.cols + tc] = 0;
+  }
+  for (int& slot : tiles.slot) slot = slot == 0 ? tiles.count++ : -1;
+  return tiles;
+}
+
+/// Per stored node: the edge point that claimed it (-1: none) and the squared distance.
+struct NearestClaims {
+  std::vector<int> nearest;
+  std::vector<float> nearest_d2;
+};
+
+/// Exact nearest edge point of every node within band_px of an edge: each point claims
+/// the nodes of its square that it is nearest to (ties to the lower index). The square's
+/// rows are widened to whole tile rows (8 contiguous nodes, vectorised); nodes claimed
+/// from beyond band_px are dropped later (their nearest point may not have visited them).
+NearestClaims claim_nearest(const std::vector<Eigen::Vector2d>& edge_points_px, const GridBox& box,
+                            const std::vector<Square>& squares, const TileLayout& tiles) {
+  const size_t num_nodes = static_cast<size_t>(tiles.count) * tiles.nodes();
+  NearestClaims claims;
+  claims.nearest.assign(num_nodes, -1);
+  claims.nearest_d2.assign(num_nodes, std::numeric_limits<float>::infinity());
+  const int shift = tiles.shift;
+  const int n = static_cast<int>(edge_points_px.size());
   for (int i = 0; i < n; ++i) {
     // Relative to the grid origin, so that float keeps ~1e-5 px.
-    const float pu = static_cast<float>(edge_points_px[i].x() - col_begin_);
-    const float pv = static_cast<float>(edge_points_px[i].y() - row_begin_);
+    const float pu = static_cast<float>(edge_points_px[i].x() - box.col_begin);
+    const float pv = static_cast<float>(edge_points_px[i].y() - box.row_begin);
     const Square& q = squares[i];
     for (int r = q.r_lo; r <= q.r_hi; ++r) {
       const float dv = static_cast<float>(r) - pv;
       const float dv2 = dv * dv;
-      const size_t tile_row = static_cast<size_t>(r >> kTileShift) * tile_cols_;
-      const int row_in_tile = (r & (kTile - 1)) << kTileShift;
-      for (int tc = q.c_lo >> kTileShift; tc <= q.c_hi >> kTileShift; ++tc) {
-        const size_t base = static_cast<size_t>(tile_slot_[tile_row + tc]) * kTileNodes + row_in_tile;
-        float* d2s = nearest_d2.data() + base;
-        int* owners = nearest.data() + base;
-        claim_tile_row(static_cast<float>(tc << kTileShift) - pu, dv2, i, d2s, owners);
+      const size_t tile_row = static_cast<size_t>(r >> shift) * tiles.cols;
+      const int row_in_tile = (r & (tiles.size() - 1)) << shift;
+      for (int tc = q.c_lo >> shift; tc <= q.c_hi >> shift; ++tc) {
+        const size_t base =
+            static_cast<size_t>(tiles.slot[tile_row + tc]) * tiles.nodes() + row_in_tile;
+        float* d2s = claims.nearest_d2.data() + base;
+        int* owners = claims.nearest.data() + base;
+        claim_tile_row(static_cast<float>(tc << shift) - pu, dv2, i, d2s, owners);
       }
     }
   }
+  return claims;
+}
+
+/// The stored nodes' offsets to their nearest edge (*data, interleaved du, dv) and whether
+/// each is inner (*inner); nodes beyond band_px stay zero.
+void store_offsets(const std::vector<Eigen::Vector2d>& edge_points_px,
+                   const std::vector<Eigen::Vector2d>& normals, const GridBox& box,
+                   const TileLayout& tiles, const NearestClaims& claims,
+                   const EdgeFieldOptions& options, std::vector<float>* data,
+                   std::vector<uint8_t>* inner) {
+  const size_t num_nodes = static_cast<size_t>(tiles.count) * tiles.nodes();
+  const double band2 = options.band_px * options.band_px;
+  const int shift = tiles.shift, tile = tiles.size();
   // A node is "inner" when the whole 4x4 bicubic stencil around it lies in the band.
   const float inner_d2 = static_cast<float>((options.band_px - 3.0) * (options.band_px - 3.0));
-  data_.assign(num_nodes * 2, 0.0f);
-  inner_.assign(num_nodes, 0);
-  tangent_reach_px_ = options.normal_radius_px;
-  for (int tr = 0; tr < tile_rows_; ++tr) {
-    for (int tc = 0; tc < tile_cols_; ++tc) {
-      const int slot = tile_slot_[static_cast<size_t>(tr) * tile_cols_ + tc];
+  data->assign(num_nodes * 2, 0.0f);
+  inner->assign(num_nodes, 0);
+  for (int tr = 0; tr < tiles.rows; ++tr) {
+    for (int tc = 0; tc < tiles.cols; ++tc) {
+      const int slot = tiles.slot[static_cast<size_t>(tr) * tiles.cols + tc];
       if (slot < 0) continue;
-      for (int k = 0; k < kTileNodes; ++k) {
-        const size_t idx = static_cast<size_t>(slot) * kTileNodes + k;
-        const int best = nearest[idx];
-        if (best < 0 || nearest_d2[idx] > band2) continue;
+      for (int k = 0; k < tiles.nodes(); ++k) {
+        const size_t idx = static_cast<size_t>(slot) * tiles.nodes() + k;
+        const int best = claims.nearest[idx];
+        if (best < 0 || claims.nearest_d2[idx] > band2) continue;
         // The tangent-line offset, except beyond the end of an open edge (where the tangent
         // line would continue the edge into empty space) and at isolated points (zero normal).
-        const double du = (tc << kTileShift) + (k & (kTile - 1)) + col_begin_ - edge_points_px[best].x();
-        const double dv = (tr << kTileShift) + (k >> kTileShift) + row_begin_ - edge_points_px[best].y();
+        const double du =
+            (tc << shift) + (k & (tile - 1)) + box.col_begin - edge_points_px[best].x();
+        const double dv = (tr << shift) + (k >> shift) + box.row_begin - edge_points_px[best].y();
         const double nu = normals[best].x(), nv = normals[best].y();
         double ou = du, ov = dv;
         if (nu * nu + nv * nv >= 0.5 && std::abs(du * -nv + dv * nu) <= options.normal_radius_px) {
@@ -226,30 +285,87 @@ EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_po
           ou = along * nu;
           ov = along * nv;
         }
-        data_[2 * idx] = static_cast<float>(ou);
-        data_[2 * idx + 1] = static_cast<float>(ov);
-        inner_[idx] = nearest_d2[idx] <= inner_d2;
+        (*data)[2 * idx] = static_cast<float>(ou);
+        (*data)[2 * idx + 1] = static_cast<float>(ov);
+        (*inner)[idx] = claims.nearest_d2[idx] <= inner_d2;
       }
     }
   }
+}
+
+/// The points bucketed in cell-px cells over the box (CSR, ascending index per cell).
+struct SearchIndex {
+  int cols = 0, rows = 0;
+  std::vector<int> start, index;
+};
+
+SearchIndex search_index(const std::vector<Eigen::Vector2d>& points, const GridBox& box, int cell) {
+  const int n = static_cast<int>(points.size());
+  SearchIndex s;
+  s.cols = box.cols / cell + 1;
+  s.rows = box.rows / cell + 1;
+  std::vector<int> cell_of(n);
+  s.start.assign(static_cast<size_t>(s.cols) * s.rows + 1, 0);
+  for (int i = 0; i < n; ++i) {
+    // Relative coordinates are positive: truncation is floor.
+    const int c = static_cast<int>(points[i].x() - box.col_begin) / cell;
+    const int r = static_cast<int>(points[i].y() - box.row_begin) / cell;
+    cell_of[i] = r * s.cols + c;
+    ++s.start[cell_of[i] + 1];
+  }
+  for (size_t k = 1; k < s.start.size(); ++k) s.start[k] += s.start[k - 1];
+  s.index.resize(n);
+  std::vector<int> fill(s.start.begin(), s.start.end() - 1);
+  for (int i = 0; i < n; ++i) s.index[fill[cell_of[i]]++] = i;  // ascending i per cell
+  return s;
+}
+
+}  // namespace
+
+std::string EdgeFieldOptions::validate() const {
+  std::ostringstream os;
+  if (!(band_px >= 5.0)) os << "band_px = " << band_px << ", expected >= 5; ";
+  if (!(normal_radius_px > 0.5))
+    os << "normal_radius_px = " << normal_radius_px << ", expected > 0.5; ";
+  if (max_nodes < 16) os << "max_nodes = " << max_nodes << ", expected >= 16; ";
+  return os.str();
+}
+
+EdgeDistanceField::EdgeDistanceField(const std::vector<Eigen::Vector2d>& edge_points_px,
+                                     const EdgeFieldOptions& options) {
+  if (const std::string why = options.validate(); !why.empty()) {
+    throw std::invalid_argument("EdgeDistanceField: invalid options: " + why);
+  }
+  if (edge_points_px.empty()) {
+    throw std::invalid_argument("EdgeDistanceField: no edge points (expected at least one)");
+  }
+  const GridBox box = band_box(edge_points_px, options);
+  col_begin_ = box.col_begin;
+  row_begin_ = box.row_begin;
+  cols_ = box.cols;
+  rows_ = box.rows;
+  std::vector<Eigen::Vector2d> normals = edge_normals(edge_points_px, box, options);
+
+  const int band = static_cast<int>(std::ceil(options.band_px));
+  const std::vector<Square> squares = band_squares(edge_points_px, box, band);
+  TileLayout tiles = band_tiles(squares, box, kTileShift);
+  // Exact nearest edge point of every node within band_px of an edge (claim_nearest);
+  // rows of 8 contiguous nodes are claimed at once.
+  static_assert(kTile == 8, "claim_tile_row() handles rows of 8 nodes");
+  const NearestClaims claims = claim_nearest(edge_points_px, box, squares, tiles);
+  tangent_reach_px_ = options.normal_radius_px;
+  store_offsets(edge_points_px, normals, box, tiles, claims, options, &data_, &inner_);
+  tile_cols_ = tiles.cols;
+  tile_rows_ = tiles.rows;
+  tile_slot_ = std::move(tiles.slot);
   points_ = edge_points_px;
   normals_ = std::move(normals);
 
-  search_cols_ = cols_ / kSearchCell + 1;
-  search_rows_ = rows_ / kSearchCell + 1;
-  std::vector<int> cell_of(n);
-  search_start_.assign(static_cast<size_t>(search_cols_) * search_rows_ + 1, 0);
-  for (int i = 0; i < n; ++i) {
-    // Relative coordinates are positive: truncation is floor.
-    const int c = static_cast<int>(points_[i].x() - col_begin_) / kSearchCell;
-    const int r = static_cast<int>(points_[i].y() - row_begin_) / kSearchCell;
-    cell_of[i] = r * search_cols_ + c;
-    ++search_start_[cell_of[i] + 1];
-  }
-  for (size_t k = 1; k < search_start_.size(); ++k) search_start_[k] += search_start_[k - 1];
-  search_index_.resize(n);
-  std::vector<int> fill(search_start_.begin(), search_start_.end() - 1);
-  for (int i = 0; i < n; ++i) search_index_[fill[cell_of[i]]++] = i;  // ascending i per cell
+  SearchIndex search = search_index(points_, box, kSearchCell);
+  search_cols_ = search.cols;
+  search_rows_ = search.rows;
+  search_start_ = std::move(search.start);
+  search_index_ = std::move(search.index);
 }
 
 void EdgeDistanceField::nearest_edge(const Eigen::Vector2d& px, Eigen::Vector2d* point,

@@ -123,63 +123,40 @@ class MotionCache {
   std::unordered_map<long long, Eigen::Isometry3d> cache_;
 };
 
-}  // namespace
-
-const char* to_string(ColorStatus status) {
-  switch (status) {
-    case ColorStatus::kColored: return "colored";
-    case ColorStatus::kNoImage: return "no_image";
-    case ColorStatus::kBehindCamera: return "behind_camera";
-    case ColorStatus::kOutsideImage: return "outside_image";
-    case ColorStatus::kOccluded: return "occluded";
-    case ColorStatus::kNoTemperature: return "no_temperature";
-  }
-  return "unknown";
-}
-
-std::string ColorizeOptions::validate() const {
-  std::ostringstream os;
-  if (!(depth_tolerance_m >= 0.0)) os << "depth_tolerance_m = " << depth_tolerance_m << ", expected >= 0; ";
-  if (!(depth_tolerance_ratio >= 0.0)) os << "depth_tolerance_ratio = " << depth_tolerance_ratio << ", expected >= 0; ";
-  if (zbuffer_max_width_px < 8) os << "zbuffer_max_width_px = " << zbuffer_max_width_px << ", expected >= 8; ";
-  if (!(scan_period_s > 0.0)) os << "scan_period_s = " << scan_period_s << ", expected > 0; ";
-  if (steps_per_revolution < 1) os << "steps_per_revolution = " << steps_per_revolution << ", expected >= 1; ";
-  if (!(max_triangle_extent_px > 0.0)) os << "max_triangle_extent_px = " << max_triangle_extent_px << ", expected > 0; ";
-  if (!(edge_angle_deg >= 0.0 && edge_angle_deg < 90.0)) os << "edge_angle_deg = " << edge_angle_deg << ", expected in [0, 90); ";
-  if (!(discontinuity_ratio > 0.0)) os << "discontinuity_ratio = " << discontinuity_ratio << ", expected > 0; ";
-  if (fallback_splat_radius_cells < 0) os << "fallback_splat_radius_cells = " << fallback_splat_radius_cells << ", expected >= 0; ";
-  if (!(min_depth_m > 0.0)) os << "min_depth_m = " << min_depth_m << ", expected > 0; ";
-  return os.str();
-}
-
-CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring_and_t, double cloud_time_s,
-                                        const MappedCamera& mapped, double image_time_s,
-                                        const Trajectory* trajectory, const ColorizeOptions& options) {
-  if (const std::string why = options.validate(); !why.empty()) {
-    throw std::invalid_argument("ColorizeOptions: " + why);
-  }
-  const core::PinholeCamera& camera = mapped.camera;
-  const std::size_t n = cloud.size();
-  CameraProjection out;
-  out.image_width = camera.width();
-  out.image_height = camera.height();
-  out.pixel_px.assign(n, Eigen::Vector2f::Zero());
-  out.depth_m.assign(n, 0.0f);
-  out.status.assign(n, ColorStatus::kOutsideImage);
-
-  // Normalised-coordinate bounds of the image (with margin): distortion polynomials fold
-  // far-off-axis points back into the image, so those are rejected before projecting.
+/// Normalised-coordinate bounds of the image (with margin): distortion polynomials fold
+/// far-off-axis points back into the image, so those are rejected before projecting.
+struct ImageBounds {
   double x_max = 0.0, y_max = 0.0;
+  /// Whether a camera-frame point in front of the camera lies beyond the bounds.
+  bool beyond(const Eigen::Vector3f& q) const {
+    return std::abs(q.x()) > x_max * q.z() || std::abs(q.y()) > y_max * q.z();
+  }
+};
+
+ImageBounds image_bounds(const core::PinholeCamera& camera) {
+  ImageBounds bounds;
   for (const auto& corner : {Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(camera.width() - 0.5, -0.5),
                              Eigen::Vector2d(-0.5, camera.height() - 0.5),
                              Eigen::Vector2d(camera.width() - 0.5, camera.height() - 0.5)}) {
     const Eigen::Vector3d ray = camera.unproject(corner);
-    x_max = std::max(x_max, std::abs(ray.x()));
-    y_max = std::max(y_max, std::abs(ray.y()));
+    bounds.x_max = std::max(bounds.x_max, std::abs(ray.x()));
+    bounds.y_max = std::max(bounds.y_max, std::abs(ray.y()));
   }
-  x_max *= 1.25;
-  y_max *= 1.25;
+  bounds.x_max *= 1.25;
+  bounds.y_max *= 1.25;
+  return bounds;
+}
 
+/// Every point in the camera frame at image time (motion-compensated along the trajectory
+/// when there is one): out's depth, pixel and status (behind the camera, outside the image or
+/// colored until occlusion is tested) and the workspace's q_camera, origin_camera and
+/// projectable.
+void project_points(const cloud::Cloud& cloud, double cloud_time_s, const MappedCamera& mapped,
+                    double image_time_s, const Trajectory* trajectory,
+                    const ColorizeOptions& options, const ImageBounds& bounds, Workspace* workspace,
+                    CameraProjection* out) {
+  const core::PinholeCamera& camera = mapped.camera;
+  const std::size_t n = cloud.size();
   const bool compensate = trajectory != nullptr && !trajectory->empty();
   std::optional<MotionCache> motion;
   if (compensate) motion.emplace(*trajectory, image_time_s);
@@ -187,13 +164,12 @@ CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring
 
   // Projection of every point; `projectable` marks points whose pixel may be used as a
   // mesh vertex even if it lands just outside the image.
-  thread_local Workspace workspace;
-  std::vector<std::uint8_t>& projectable = workspace.projectable;
+  std::vector<std::uint8_t>& projectable = workspace->projectable;
   projectable.assign(n, 0);
-  std::vector<Eigen::Vector3f>& q_camera = workspace.q_camera;
+  std::vector<Eigen::Vector3f>& q_camera = workspace->q_camera;
   q_camera.resize(n);
   // Where the LIDAR was when it measured each point, in the camera frame at image time.
-  std::vector<Eigen::Vector3f>& origin_camera = workspace.origin_camera;
+  std::vector<Eigen::Vector3f>& origin_camera = workspace->origin_camera;
   origin_camera.assign(n, T_camera_lidar.translation());
   // A tilt's points come in time order: consecutive points share the motion cache's bin.
   long long cached_bin = std::numeric_limits<long long>::min();
@@ -212,36 +188,32 @@ CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring
     } else {
       q = T_camera_lidar * q;
     }
-    out.depth_m[i] = q.z();
+    out->depth_m[i] = q.z();
     q_camera[i] = q;
     if (!(q.z() > options.min_depth_m)) {
-      out.status[i] = ColorStatus::kBehindCamera;
+      out->status[i] = ColorStatus::kBehindCamera;
       continue;
     }
-    if (std::abs(q.x()) > x_max * q.z() || std::abs(q.y()) > y_max * q.z()) continue;
+    if (bounds.beyond(q)) continue;
     Eigen::Vector2d uv;
     camera.project(q.cast<double>(), &uv);
-    out.pixel_px[i] = uv.cast<float>();
+    out->pixel_px[i] = uv.cast<float>();
     projectable[i] = 1;
-    if (camera.in_image(uv, -0.5)) out.status[i] = ColorStatus::kColored;
+    if (camera.in_image(uv, -0.5)) out->status[i] = ColorStatus::kColored;
   }
+}
 
-  DepthBuffer buffer(workspace.depth_cells, camera.width(), camera.height(), options.zbuffer_max_width_px);
-  std::vector<Eigen::Vector2f>& cell = workspace.cell;
-  cell.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    cell[i] = Eigen::Vector2f(buffer.to_cell(out.pixel_px[i].x()), buffer.to_cell(out.pixel_px[i].y()));
-  }
+/// Point index per ring and beam position within the scan (-1 where no point is).
+using ScanGrid = std::unordered_map<std::uint16_t, std::vector<int>>;
 
-  // Scan-line mesh: vertex (ring, beam position within the scan). Beam k of a scan is
-  // measured k * scan_period / steps after the scan starts and scans follow each other
-  // every scan_period (rgbdt/core/tilt_rig.hpp), so round(t / beam_period) mod steps is
-  // the same for the same beam in every scan.
-  std::unordered_map<std::uint16_t, std::vector<int>> grid;
-  // Gentlest depth gradient among the surface triangles around each point [m/cell]: the
-  // gentlest, so that a triangle bridging an unflagged depth step cannot loosen the test.
-  std::vector<float>& slope_m_per_cell = workspace.slope_m_per_cell;
-  slope_m_per_cell.assign(n, kInf);
+/// Scan-line mesh: vertex (ring, beam position within the scan). Beam k of a scan is
+/// measured k * scan_period / steps after the scan starts and scans follow each other
+/// every scan_period (rgbdt/core/tilt_rig.hpp), so round(t / beam_period) mod steps is
+/// the same for the same beam in every scan.
+ScanGrid scan_grid(const cloud::Cloud& cloud, bool has_ring_and_t,
+                   const std::vector<std::uint8_t>& projectable, const ColorizeOptions& options) {
+  ScanGrid grid;
+  const std::size_t n = cloud.size();
   if (has_ring_and_t && n > 0) {
     const int steps = options.steps_per_revolution;
     const double beam_period_s = options.scan_period_s / steps;
@@ -254,101 +226,37 @@ CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring
       row[position] = static_cast<int>(i);
     }
   }
-  out.meshed = grid.size() >= 2;
-  if (out.meshed) {
-    const float max_extent_cells = static_cast<float>(options.max_triangle_extent_px / buffer.scale);
-    const float jump_ratio = static_cast<float>(1.0 + options.discontinuity_ratio);
-    const float jump_m = static_cast<float>(options.depth_tolerance_m);
-    const Eigen::Vector3d lidar_origin = mapped.T_camera_lidar.translation();
-    const double sin_edge_angle = std::sin(options.edge_angle_deg * M_PI / 180.0);
-    std::vector<std::uint8_t>& edge_vertex = workspace.edge_vertex;
-    edge_vertex.assign(n, 0);
-    std::vector<float>& footprint = workspace.footprint;  // largest neighbour spacing on the vertex's surface [cells]
-    footprint.assign(n, 0.0f);
-    auto triangle = [&](int a, int b, int c) {
-      if (a < 0 || b < 0 || c < 0) return;
-      const Eigen::Vector2f& pa = cell[a];
-      const Eigen::Vector2f& pb = cell[b];
-      const Eigen::Vector2f& pc = cell[c];
-      const float w = std::max({pa.x(), pb.x(), pc.x()}) - std::min({pa.x(), pb.x(), pc.x()});
-      const float h = std::max({pa.y(), pb.y(), pc.y()}) - std::min({pa.y(), pb.y(), pc.y()});
-      if (w > max_extent_cells || h > max_extent_cells) return;
-      const float za = out.depth_m[a], zb = out.depth_m[b], zc = out.depth_m[c];
-      const float z_near = std::min({za, zb, zc});
-      // Seen from the camera, a triangle that turns its other side than it showed the LIDAR
-      // is a fold: the camera's parallax moved its far vertices behind the near ones.
-      const Eigen::Vector3d qa = q_camera[a].cast<double>(), qb = q_camera[b].cast<double>(),
-                            qc = q_camera[c].cast<double>();
-      const double side_camera = qa.dot(qb.cross(qc));
-      const double side_lidar = (qa - lidar_origin).dot((qb - lidar_origin).cross(qc - lidar_origin));
-      const bool fold = side_camera * side_lidar < 0.0;
-      // A triangle that (nearly) contains the LIDAR's ray spans a depth edge, not a surface.
-      const Eigen::Vector3d normal = (qb - qa).cross(qc - qa);
-      const Eigen::Vector3d ray = (qa + qb + qc) / 3.0 - lidar_origin;
-      const double normal_norm = normal.norm() * ray.norm();
-      const bool along_ray = normal_norm <= 0.0 || std::abs(normal.dot(ray)) < sin_edge_angle * normal_norm;
-      const float z_far = std::max({za, zb, zc});
-      const bool jump = z_far > z_near + jump_m && (along_ray || z_far > z_near * jump_ratio + jump_m);
-      if (jump) {
-        // Depth discontinuity: the near surface ends somewhere between its last samples and
-        // the LIDAR's next rays, which found something farther. It reaches at most those
-        // rays: its largest possible extent is this triangle with the far vertices pulled
-        // back along their own LIDAR rays to the near range. The camera sees that region
-        // shifted against the far samples (parallax), so the region itself is projected and
-        // drawn at the near depth (one margin beyond): far samples behind it stay
-        // uncoloured, far samples beside it are seen past the near object and keep theirs.
-        const int v[3] = {a, b, c};
-        float range[3];
-        float r_near = kInf;
-        for (int j = 0; j < 3; ++j) {
-          range[j] = (q_camera[v[j]] - origin_camera[v[j]]).norm();
-          r_near = std::min(r_near, range[j]);
-        }
-        float z_flat = z_near;
-        Eigen::Vector2f corner[3];
-        for (int j = 0; j < 3; ++j) {
-          corner[j] = cell[v[j]];
-          if (range[j] <= r_near + jump_m) continue;
-          const Eigen::Vector3f& o = origin_camera[v[j]];
-          const Eigen::Vector3f pulled = o + (q_camera[v[j]] - o) * (r_near / range[j]);
-          if (!(pulled.z() > options.min_depth_m) || std::abs(pulled.x()) > x_max * pulled.z() ||
-              std::abs(pulled.y()) > y_max * pulled.z()) {
-            continue;  // keeps the far vertex: a larger, still conservative region
-          }
-          Eigen::Vector2d uv;
-          camera.project(pulled.cast<double>(), &uv);
-          corner[j] = Eigen::Vector2f(buffer.to_cell(static_cast<float>(uv.x())), buffer.to_cell(static_cast<float>(uv.y())));
-          z_flat = std::min(z_flat, pulled.z());
-        }
-        rasterize(buffer, corner[0], corner[1], corner[2], z_flat, z_flat, z_flat, kEdgeMarginCells);
-        for (int j = 0; j < 3; ++j) {
-          if (range[j] <= r_near + jump_m) edge_vertex[v[j]] = 1;
-        }
-      } else if (fold) {
-        // The camera sees the other side of the triangle than the LIDAR did: parallax moved
-        // its far vertices behind its near ones, so the surface folds over itself in the
-        // image. The nearest depth covers the fold.
-        rasterize(buffer, pa, pb, pc, z_near, z_near, z_near, kEdgeMarginCells);
-      } else {
-        rasterize(buffer, pa, pb, pc, za, zb, zc, 0.0f);
-        // Depth change per cell of this surface in the image: a point is compared with the
-        // buffer at its nearest cell centre, up to 0.71 cells away, and on a steep (grazing)
-        // surface such as the far ground that moves the surface's depth by more than the
-        // tolerance.
-        const Eigen::Vector2f e1 = pb - pa, e2 = pc - pa;
-        const float det = e1.x() * e2.y() - e1.y() * e2.x();
-        if (std::abs(det) > 1e-6f) {
-          const float dz1 = zb - za, dz2 = zc - za;
-          const float gx = (dz1 * e2.y() - dz2 * e1.y()) / det;
-          const float gy = (dz2 * e1.x() - dz1 * e2.x()) / det;
-          const float slope = std::sqrt(gx * gx + gy * gy);
-          for (const int v : {a, b, c}) slope_m_per_cell[v] = std::min(slope_m_per_cell[v], slope);
-        }
-        const float spacing = std::max({(pa - pb).norm(), (pb - pc).norm(), (pc - pa).norm()});
-        for (const int v : {a, b, c}) footprint[v] = std::max(footprint[v], spacing);
-      }
-    };
-    const int steps = options.steps_per_revolution;
+  return grid;
+}
+
+/// Draws the scan-line mesh's triangles into the depth buffer: surfaces at their own depths
+/// (recording each vertex's slope and footprint), depth edges and folds conservatively at
+/// their near depth (marking the edges' near vertices).
+class MeshRasterizer {
+ public:
+  MeshRasterizer(const MappedCamera& mapped, const ColorizeOptions& options,
+                 const ImageBounds& bounds, const CameraProjection& out, Workspace& workspace,
+                 DepthBuffer& buffer)
+      : camera_(mapped.camera),
+        options_(options),
+        bounds_(bounds),
+        depth_m_(out.depth_m),
+        cell_(workspace.cell),
+        q_camera_(workspace.q_camera),
+        origin_camera_(workspace.origin_camera),
+        edge_vertex_(workspace.edge_vertex),
+        slope_m_per_cell_(workspace.slope_m_per_cell),
+        footprint_(workspace.footprint),
+        buffer_(buffer),
+        max_extent_cells_(static_cast<float>(options.max_triangle_extent_px / buffer.scale)),
+        jump_ratio_(static_cast<float>(1.0 + options.discontinuity_ratio)),
+        jump_m_(static_cast<float>(options.depth_tolerance_m)),
+        lidar_origin_(mapped.T_camera_lidar.translation()),
+        sin_edge_angle_(std::sin(options.edge_angle_deg * M_PI / 180.0)) {}
+
+  /// Two triangles per quad of neighbouring rings and beams.
+  void rasterize(const ScanGrid& grid) const {
+    const int steps = options_.steps_per_revolution;
     for (const auto& [ring, row] : grid) {
       const auto next = grid.find(static_cast<std::uint16_t>(ring + 1));
       if (next == grid.end()) continue;
@@ -371,48 +279,278 @@ CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring
         }
       }
     }
-    // Edge samples also cover a small square (kEdgeSplatFraction).
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!edge_vertex[i]) continue;
-      const int r = std::clamp(static_cast<int>(std::ceil(kEdgeSplatFraction * footprint[i])), 1, kMaxEdgeSplatCells);
-      const int cx = static_cast<int>(std::lround(cell[i].x()));
-      const int cy = static_cast<int>(std::lround(cell[i].y()));
-      for (int y = std::max(0, cy - r); y <= std::min(buffer.height - 1, cy + r); ++y) {
-        for (int x = std::max(0, cx - r); x <= std::min(buffer.width - 1, cx + r); ++x) {
-          float& d = buffer.at(x, y);
-          d = std::min(d, out.depth_m[i]);
-        }
-      }
-    }
-  } else {
-    const int r = options.fallback_splat_radius_cells;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!projectable[i]) continue;
-      const int cx = static_cast<int>(std::lround(cell[i].x()));
-      const int cy = static_cast<int>(std::lround(cell[i].y()));
-      for (int y = std::max(0, cy - r); y <= std::min(buffer.height - 1, cy + r); ++y) {
-        for (int x = std::max(0, cx - r); x <= std::min(buffer.width - 1, cx + r); ++x) {
-          float& d = buffer.at(x, y);
-          d = std::min(d, out.depth_m[i]);
-        }
-      }
+  }
+
+ private:
+  void triangle(int a, int b, int c) const {
+    if (a < 0 || b < 0 || c < 0) return;
+    const Eigen::Vector2f& pa = cell_[a];
+    const Eigen::Vector2f& pb = cell_[b];
+    const Eigen::Vector2f& pc = cell_[c];
+    const float w = std::max({pa.x(), pb.x(), pc.x()}) - std::min({pa.x(), pb.x(), pc.x()});
+    const float h = std::max({pa.y(), pb.y(), pc.y()}) - std::min({pa.y(), pb.y(), pc.y()});
+    if (w > max_extent_cells_ || h > max_extent_cells_) return;
+    const float za = depth_m_[a], zb = depth_m_[b], zc = depth_m_[c];
+    const float z_near = std::min({za, zb, zc});
+    // Seen from the camera, a triangle that turns its other side than it showed the LIDAR
+    // is a fold: the camera's parallax moved its far vertices behind the near ones.
+    const Eigen::Vector3d qa = q_camera_[a].cast<double>(), qb = q_camera_[b].cast<double>(),
+                          qc = q_camera_[c].cast<double>();
+    const double side_camera = qa.dot(qb.cross(qc));
+    const double side_lidar =
+        (qa - lidar_origin_).dot((qb - lidar_origin_).cross(qc - lidar_origin_));
+    const bool fold = side_camera * side_lidar < 0.0;
+    // A triangle that (nearly) contains the LIDAR's ray spans a depth edge, not a surface.
+    const Eigen::Vector3d normal = (qb - qa).cross(qc - qa);
+    const Eigen::Vector3d ray = (qa + qb + qc) / 3.0 - lidar_origin_;
+    const double normal_norm = normal.norm() * ray.norm();
+    const bool along_ray =
+        normal_norm <= 0.0 || std::abs(normal.dot(ray)) < sin_edge_angle_ * normal_norm;
+    const float z_far = std::max({za, zb, zc});
+    const bool jump =
+        z_far > z_near + jump_m_ && (along_ray || z_far > z_near * jump_ratio_ + jump_m_);
+    if (jump) {
+      depth_edge(a, b, c, z_near);
+    } else if (fold) {
+      // The camera sees the other side of the triangle than the LIDAR did: parallax moved
+      // its far vertices behind its near ones, so the surface folds over itself in the
+      // image. The nearest depth covers the fold.
+      rgbdt_map::rasterize(buffer_, pa, pb, pc, z_near, z_near, z_near, kEdgeMarginCells);
+    } else {
+      surface(a, b, c);
     }
   }
 
+  /// Depth discontinuity: the near surface ends somewhere between its last samples and
+  /// the LIDAR's next rays, which found something farther. It reaches at most those
+  /// rays: its largest possible extent is this triangle with the far vertices pulled
+  /// back along their own LIDAR rays to the near range. The camera sees that region
+  /// shifted against the far samples (parallax), so the region itself is projected and
+  /// drawn at the near depth (one margin beyond): far samples behind it stay
+  /// uncoloured, far samples beside it are seen past the near object and keep theirs.
+  void depth_edge(int a, int b, int c, float z_near) const {
+    const int v[3] = {a, b, c};
+    float range[3];
+    float r_near = kInf;
+    for (int j = 0; j < 3; ++j) {
+      range[j] = (q_camera_[v[j]] - origin_camera_[v[j]]).norm();
+      r_near = std::min(r_near, range[j]);
+    }
+    float z_flat = z_near;
+    Eigen::Vector2f corner[3];
+    for (int j = 0; j < 3; ++j) {
+      corner[j] = cell_[v[j]];
+      if (range[j] <= r_near + jump_m_) continue;
+      const Eigen::Vector3f& o = origin_camera_[v[j]];
+      const Eigen::Vector3f pulled = o + (q_camera_[v[j]] - o) * (r_near / range[j]);
+      if (!(pulled.z() > options_.min_depth_m) || bounds_.beyond(pulled)) {
+        continue;  // keeps the far vertex: a larger, still conservative region
+      }
+      Eigen::Vector2d uv;
+      camera_.project(pulled.cast<double>(), &uv);
+      corner[j] = Eigen::Vector2f(buffer_.to_cell(static_cast<float>(uv.x())),
+                                  buffer_.to_cell(static_cast<float>(uv.y())));
+      z_flat = std::min(z_flat, pulled.z());
+    }
+    rgbdt_map::rasterize(buffer_, corner[0], corner[1], corner[2], z_flat, z_flat, z_flat,
+                         kEdgeMarginCells);
+    for (int j = 0; j < 3; ++j) {
+      if (range[j] <= r_near + jump_m_) edge_vertex_[v[j]] = 1;
+    }
+  }
+
+  /// A piece of surface at its own depths; records its slope and spacing at its vertices.
+  void surface(int a, int b, int c) const {
+    const Eigen::Vector2f& pa = cell_[a];
+    const Eigen::Vector2f& pb = cell_[b];
+    const Eigen::Vector2f& pc = cell_[c];
+    const float za = depth_m_[a], zb = depth_m_[b], zc = depth_m_[c];
+    rgbdt_map::rasterize(buffer_, pa, pb, pc, za, zb, zc, 0.0f);
+    // Depth change per cell of this surface in the image: a point is compared with the
+    // buffer at its nearest cell centre, up to 0.71 cells away, and on a steep (grazing)
+    // surface such as the far ground that moves the surface's depth by more than the
+    // tolerance.
+    const Eigen::Vector2f e1 = pb - pa, e2 = pc - pa;
+    const float det = e1.x() * e2.y() - e1.y() * e2.x();
+    if (std::abs(det) > 1e-6f) {
+      const float dz1 = zb - za, dz2 = zc - za;
+      const float gx = (dz1 * e2.y() - dz2 * e1.y()) / det;
+      const float gy = (dz2 * e1.x() - dz1 * e2.x()) / det;
+      const float slope = std::sqrt(gx * gx + gy * gy);
+      for (const int v : {a, b, c}) slope_m_per_cell_[v] = std::min(slope_m_per_cell_[v], slope);
+    }
+    const float spacing = std::max({(pa - pb).norm(), (pb - pc).norm(), (pc - pa).norm()});
+    for (const int v : {a, b, c}) footprint_[v] = std::max(footprint_[v], spacing);
+  }
+
+  const core::PinholeCamera& camera_;
+  const ColorizeOptions& options_;
+  const ImageBounds& bounds_;
+  const std::vector<float>& depth_m_;
+  const std::vector<Eigen::Vector2f>& cell_;
+  const std::vector<Eigen::Vector3f>& q_camera_;
+  const std::vector<Eigen::Vector3f>& origin_camera_;
+  std::vector<std::uint8_t>& edge_vertex_;
+  std::vector<float>& slope_m_per_cell_;
+  std::vector<float>& footprint_;  // largest neighbour spacing on the vertex's surface [cells]
+  DepthBuffer& buffer_;
+  const float max_extent_cells_;
+  const float jump_ratio_;
+  const float jump_m_;
+  const Eigen::Vector3d lidar_origin_;
+  const double sin_edge_angle_;
+};
+
+/// Keeps depth z in the buffer's cells within r of the cell nearest `at`.
+void splat(const Eigen::Vector2f& at, int r, float z, DepthBuffer& buffer) {
+  const int cx = static_cast<int>(std::lround(at.x()));
+  const int cy = static_cast<int>(std::lround(at.y()));
+  for (int y = std::max(0, cy - r); y <= std::min(buffer.height - 1, cy + r); ++y) {
+    for (int x = std::max(0, cx - r); x <= std::min(buffer.width - 1, cx + r); ++x) {
+      float& d = buffer.at(x, y);
+      d = std::min(d, z);
+    }
+  }
+}
+
+/// The scan-line mesh drawn into the buffer; then each depth-edge sample's small square.
+void draw_mesh(const ScanGrid& grid, const MappedCamera& mapped, const ColorizeOptions& options,
+               const ImageBounds& bounds, const CameraProjection& out, Workspace& workspace,
+               DepthBuffer& buffer) {
+  const std::size_t n = out.depth_m.size();
+  const std::vector<Eigen::Vector2f>& cell = workspace.cell;
+  std::vector<std::uint8_t>& edge_vertex = workspace.edge_vertex;
+  edge_vertex.assign(n, 0);
+  // Largest neighbour spacing on the vertex's surface [cells].
+  std::vector<float>& footprint = workspace.footprint;
+  footprint.assign(n, 0.0f);
+  const MeshRasterizer mesh(mapped, options, bounds, out, workspace, buffer);
+  mesh.rasterize(grid);
+  // Edge samples also cover a small square (kEdgeSplatFraction).
   for (std::size_t i = 0; i < n; ++i) {
-    if (out.status[i] != ColorStatus::kColored) continue;
+    if (!edge_vertex[i]) continue;
+    const int r = std::clamp(static_cast<int>(std::ceil(kEdgeSplatFraction * footprint[i])), 1,
+                             kMaxEdgeSplatCells);
+    splat(cell[i], r, out.depth_m[i], buffer);
+  }
+}
+
+/// Without a mesh: every projectable point's square of radius r [cells].
+void splat_points(const CameraProjection& out, const Workspace& workspace, int r,
+                  DepthBuffer& buffer) {
+  const std::vector<Eigen::Vector2f>& cell = workspace.cell;
+  for (std::size_t i = 0; i < out.depth_m.size(); ++i) {
+    if (workspace.projectable[i]) splat(cell[i], r, out.depth_m[i], buffer);
+  }
+}
+
+/// Marks the coloured points that lie behind the buffer's surface (beyond the tolerance)
+/// as occluded; counts the others as visible.
+void mark_occluded(const std::vector<Eigen::Vector2f>& cell,
+                   const std::vector<float>& slope_m_per_cell, const DepthBuffer& buffer,
+                   const ColorizeOptions& options, CameraProjection* out) {
+  for (std::size_t i = 0; i < out->status.size(); ++i) {
+    if (out->status[i] != ColorStatus::kColored) continue;
     const int cx = std::clamp(static_cast<int>(std::lround(cell[i].x())), 0, buffer.width - 1);
     const int cy = std::clamp(static_cast<int>(std::lround(cell[i].y())), 0, buffer.height - 1);
-    const float z = out.depth_m[i];
+    const float z = out->depth_m[i];
     const float tolerance =
         static_cast<float>(options.depth_tolerance_m + options.depth_tolerance_ratio * static_cast<double>(z)) +
         (std::isfinite(slope_m_per_cell[i]) ? kHalfCellDiagonal * slope_m_per_cell[i] : 0.0f);
     if (z > buffer.at(cx, cy) + tolerance) {
-      out.status[i] = ColorStatus::kOccluded;
+      out->status[i] = ColorStatus::kOccluded;
     } else {
-      ++out.visible;
+      ++out->visible;
     }
   }
+}
+
+}  // namespace
+
+const char* to_string(ColorStatus status) {
+  switch (status) {
+    case ColorStatus::kColored:
+      return "colored";
+    case ColorStatus::kNoImage:
+      return "no_image";
+    case ColorStatus::kBehindCamera:
+      return "behind_camera";
+    case ColorStatus::kOutsideImage:
+      return "outside_image";
+    case ColorStatus::kOccluded:
+      return "occluded";
+    case ColorStatus::kNoTemperature:
+      return "no_temperature";
+  }
+  return "unknown";
+}
+
+std::string ColorizeOptions::validate() const {
+  std::ostringstream os;
+  if (!(depth_tolerance_m >= 0.0))
+    os << "depth_tolerance_m = " << depth_tolerance_m << ", expected >= 0; ";
+  if (!(depth_tolerance_ratio >= 0.0))
+    os << "depth_tolerance_ratio = " << depth_tolerance_ratio << ", expected >= 0; ";
+  if (zbuffer_max_width_px < 8)
+    os << "zbuffer_max_width_px = " << zbuffer_max_width_px << ", expected >= 8; ";
+  if (!(scan_period_s > 0.0)) os << "scan_period_s = " << scan_period_s << ", expected > 0; ";
+  if (steps_per_revolution < 1)
+    os << "steps_per_revolution = " << steps_per_revolution << ", expected >= 1; ";
+  if (!(max_triangle_extent_px > 0.0))
+    os << "max_triangle_extent_px = " << max_triangle_extent_px << ", expected > 0; ";
+  if (!(edge_angle_deg >= 0.0 && edge_angle_deg < 90.0))
+    os << "edge_angle_deg = " << edge_angle_deg << ", expected in [0, 90); ";
+  if (!(discontinuity_ratio > 0.0))
+    os << "discontinuity_ratio = " << discontinuity_ratio << ", expected > 0; ";
+  if (fallback_splat_radius_cells < 0)
+    os << "fallback_splat_radius_cells = " << fallback_splat_radius_cells << ", expected >= 0; ";
+  if (!(min_depth_m > 0.0)) os << "min_depth_m = " << min_depth_m << ", expected > 0; ";
+  return os.str();
+}
+
+CameraProjection project_with_occlusion(const cloud::Cloud& cloud, bool has_ring_and_t,
+                                        double cloud_time_s, const MappedCamera& mapped,
+                                        double image_time_s, const Trajectory* trajectory,
+                                        const ColorizeOptions& options) {
+  if (const std::string why = options.validate(); !why.empty()) {
+    throw std::invalid_argument("ColorizeOptions: " + why);
+  }
+  const core::PinholeCamera& camera = mapped.camera;
+  const std::size_t n = cloud.size();
+  CameraProjection out;
+  out.image_width = camera.width();
+  out.image_height = camera.height();
+  out.pixel_px.assign(n, Eigen::Vector2f::Zero());
+  out.depth_m.assign(n, 0.0f);
+  out.status.assign(n, ColorStatus::kOutsideImage);
+
+  const ImageBounds bounds = image_bounds(camera);
+  thread_local Workspace workspace;
+  project_points(cloud, cloud_time_s, mapped, image_time_s, trajectory, options, bounds, &workspace,
+                 &out);
+
+  DepthBuffer buffer(workspace.depth_cells, camera.width(), camera.height(),
+                     options.zbuffer_max_width_px);
+  std::vector<Eigen::Vector2f>& cell = workspace.cell;
+  cell.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    cell[i] =
+        Eigen::Vector2f(buffer.to_cell(out.pixel_px[i].x()), buffer.to_cell(out.pixel_px[i].y()));
+  }
+
+  const ScanGrid grid = scan_grid(cloud, has_ring_and_t, workspace.projectable, options);
+  // Gentlest depth gradient among the surface triangles around each point [m/cell]: the
+  // gentlest, so that a triangle bridging an unflagged depth step cannot loosen the test.
+  std::vector<float>& slope_m_per_cell = workspace.slope_m_per_cell;
+  slope_m_per_cell.assign(n, kInf);
+  out.meshed = grid.size() >= 2;
+  if (out.meshed) {
+    draw_mesh(grid, mapped, options, bounds, out, workspace, buffer);
+  } else {
+    splat_points(out, workspace, options.fallback_splat_radius_cells, buffer);
+  }
+
+  mark_occluded(cell, slope_m_per_cell, buffer, options, &out);
   return out;
 }
 
