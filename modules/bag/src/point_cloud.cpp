@@ -226,6 +226,9 @@ CloudPoints extract_points(const PointCloud2& cloud, const MessageContext& conte
   if (intensity) out.intensity.resize(n);
   if (ring) out.ring.resize(n);
   if (time) out.time_ns.resize(n);
+  // No points: done. (Walking the rows of a cloud of width 0 would cost up to 2^32 empty
+  // iterations for a height the data size does not bound.)
+  if (n == 0) return out;
 
   const bool swap = cloud.is_bigendian != host_is_big_endian();
   const std::int64_t stamp_ns = cloud.header.stamp.to_ns();
@@ -281,7 +284,14 @@ CloudPoints extract_points(const PointCloud2& cloud, const MessageContext& conte
         ex.fail("point " + std::to_string(i) + " has " + time->name +
                 " that is not a finite time (" + std::to_string(t_ns) + " ns)");
       }
-      out.time_ns[i] = base_ns + std::llround(t_ns);
+      // An offset near the limit added to the stamp can still leave the int64 range.
+      std::int64_t sum = 0;
+      if (__builtin_add_overflow(base_ns, std::llround(t_ns), &sum)) {
+        ex.fail("point " + std::to_string(i) + " has " + time->name + " " + std::to_string(t_ns) +
+                " ns after the header stamp " + std::to_string(base_ns) +
+                " ns, past the int64 nanosecond range (year 2262)");
+      }
+      out.time_ns[i] = sum;
     }
   }
   return out;
