@@ -451,6 +451,9 @@ TEST(FuzzCorpus, McapInputsReadWithoutCrashing) {
   // The fuzzer's find: an lz4 chunk (without footer, so read by the scan) stating an
   // uncompressed_size of 5e18 bytes, which the mcap library would allocate; refused first.
   EXPECT_EQ(read("alloc_lz4_chunk_uncompressed_size"), -1);
+  // The fuzzer's find in the mcap library: a message index pointing past the end of its
+  // chunk, read through an empty optional (patched in third_party/mcap); refused now.
+  EXPECT_EQ(read("crash_indexed_message_past_chunk_end"), -1);
   // rosbag2's own test bags, read in place from ../shared/data (not copied into the corpus);
   // to fuzz from them, pass their folder to the fuzzer beside the corpus.
   const fs::path rosbag2 = fs::path(RGBDT_SHARED_DATA_DIR) / "rosbag2";
