@@ -197,6 +197,8 @@ TEST(RgbdtCamera, BadRecordArgumentsAreRefusedNamingTheValue) {
       {{"--exposure", "-1"}, "--exposure -1"},
       {{"--give-up", "-2"}, "--give-up -2"},
       {{"--timeout-ms", "0"}, "--timeout-ms 0"},
+      {{"--buffers", "1"}, "--buffers 1"},
+      {{"--buffers", "100000"}, "--buffers 100000"},
       {{"--roi", "0,0,-4,10"}, "--roi 0,0,-4,10"},
   };
   int k = 0;
