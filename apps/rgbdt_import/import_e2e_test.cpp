@@ -34,9 +34,12 @@ enum class BagFormat { kRos1, kMcap, kDb3 };
 
 std::string format_name(BagFormat format) {
   switch (format) {
-    case BagFormat::kRos1: return "ros1";
-    case BagFormat::kMcap: return "mcap";
-    case BagFormat::kDb3: return "db3";
+    case BagFormat::kRos1:
+      return "ros1";
+    case BagFormat::kMcap:
+      return "mcap";
+    case BagFormat::kDb3:
+      return "db3";
   }
   return "?";
 }
@@ -46,12 +49,13 @@ void PrintTo(BagFormat format, std::ostream* os) { *os << format_name(format); }
 
 class ImportEndToEnd : public testing::TestWithParam<BagFormat> {
  protected:
-  // Why the fixture writer of the test's format cannot run here ("" when it can): the ROS 2 ones need
-  // node and the npm packages of tests/fixtures/mcap. The ROS 1 writer needs Debian's
+  // Why the fixture writer of the test's format cannot run here ("" when it can): the ROS 2 ones
+  // need node and the npm packages of tests/fixtures/mcap. The ROS 1 writer needs Debian's
   // python3-rosbag, which the build's ROS 1 storage (this test's condition) comes with.
   std::string writer_missing() const {
     switch (GetParam()) {
-      case BagFormat::kRos1: return "";
+      case BagFormat::kRos1:
+        return "";
       case BagFormat::kMcap:
         return test_util::node_fixture_missing({"@mcap/core", "@foxglove/rosmsg2-serialization"});
       case BagFormat::kDb3:
@@ -102,8 +106,7 @@ void expect_same_error(double from_bag, double original, double floor, const std
 // the truth within 10 % (floors 0.01 deg and 1 mm) of rgbdt_calibrate's on the original
 // session. Both runs use no seeds: an imported session has none.
 TEST_P(ImportEndToEnd, CalibrationThroughABagScoresAsTheOriginalSession) {
-  if (const std::string missing = writer_missing(); !missing.empty())
-    GTEST_SKIP() << missing;
+  if (const std::string missing = writer_missing(); !missing.empty()) GTEST_SKIP() << missing;
   const fs::path dir = test::temp_dir("work");
   const fs::path sim = dir / "sim", imported = dir / "imported";
   CommandRun run = run_command(
@@ -165,13 +168,13 @@ double json_number(const std::string& json, const std::string& key, const std::s
   return std::stod(m[1]);
 }
 
-// A 3 s mapping session through a bag, imported and mapped with the true calibration: trajectory RMSE and thermal error within 10 % (floors 1 mm and 0.01 K) of
-// rgbdt_mapper's on the original session's clouds. The ground truth and the thermal camera's
-// radiometry are not in a bag: they are copied into the imported session. The ROS 2 writer
-// sends rgb as a CompressedImage (the PNG's bytes), the ROS 1 one as a raw Image.
+// A 3 s mapping session through a bag, imported and mapped with the true calibration: trajectory
+// RMSE and thermal error within 10 % (floors 1 mm and 0.01 K) of rgbdt_mapper's on the original
+// session's clouds. The ground truth and the thermal camera's radiometry are not in a bag: they are
+// copied into the imported session. The ROS 2 writer sends rgb as a CompressedImage (the PNG's
+// bytes), the ROS 1 one as a raw Image.
 TEST_P(ImportEndToEnd, MappingThroughABagScoresAsTheOriginalSession) {
-  if (const std::string missing = writer_missing(); !missing.empty())
-    GTEST_SKIP() << missing;
+  if (const std::string missing = writer_missing(); !missing.empty()) GTEST_SKIP() << missing;
   const fs::path dir = test::temp_dir("work");
   const fs::path sim = dir / "sim", imported = dir / "imported";
   CommandRun run = run_command(test::built_program("rgbdt_sim") + " mapping --out " + sim.string() +

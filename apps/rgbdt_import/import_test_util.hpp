@@ -55,8 +55,7 @@ inline std::string find_node() {
   std::stringstream dirs(path != nullptr ? path : "/usr/bin:/bin");
   std::string dir;
   while (std::getline(dirs, dir, ':')) {
-    const std::filesystem::path candidate =
-        std::filesystem::path(dir.empty() ? "." : dir) / "node";
+    const std::filesystem::path candidate = std::filesystem::path(dir.empty() ? "." : dir) / "node";
     if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
   }
   return "";
@@ -71,7 +70,8 @@ inline std::filesystem::path node_fixture_dir() {
 /// when it can: node must be on PATH and `packages` (npm names) in its node_modules. A test
 /// skips with this reason: node and npm come from scripts/install-deps, not from the build.
 inline std::string node_fixture_missing(const std::vector<std::string>& packages) {
-  if (find_node().empty()) return "node is not on PATH (Debian package nodejs; scripts/install-deps)";
+  if (find_node().empty())
+    return "node is not on PATH (Debian package nodejs; scripts/install-deps)";
   const std::filesystem::path modules = node_fixture_dir() / "node_modules";
   for (const std::string& package : packages) {
     if (!std::filesystem::is_directory(modules / package)) {
