@@ -5,7 +5,6 @@
 // (scripts/install-deps: npm ci --prefix tests/fixtures/mcap) is missing.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -32,18 +31,6 @@ namespace fs = std::filesystem;
 using test_util::CommandRun;
 using test_util::run_command;
 
-// The node program on PATH, or "" when there is none.
-std::string find_node() {
-  const char* path = std::getenv("PATH");
-  std::stringstream dirs(path != nullptr ? path : "/usr/bin:/bin");
-  std::string dir;
-  while (std::getline(dirs, dir, ':')) {
-    const fs::path candidate = fs::path(dir.empty() ? "." : dir) / "node";
-    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
-  }
-  return "";
-}
-
 // Rows of a CSV with a header line, each split at commas.
 std::vector<std::vector<std::string>> read_csv(const fs::path& path, std::string* header) {
   std::ifstream f(path);
@@ -63,15 +50,11 @@ std::vector<std::vector<std::string>> read_csv(const fs::path& path, std::string
 }
 
 TEST(ImportMcapFixture, SimMappingSessionRoundTripsThroughAnMcapWrittenByRos2Tooling) {
-  const fs::path fixture = fs::path(RGBDT_SOURCE_DIR) / "tests" / "fixtures" / "mcap";
-  const std::string node = find_node();
-  if (node.empty())
-    GTEST_SKIP() << "node is not on PATH (Debian package nodejs; scripts/install-deps)";
-  if (!fs::is_directory(fixture / "node_modules" / "@mcap" / "core") ||
-      !fs::is_directory(fixture / "node_modules" / "@foxglove" / "rosmsg2-serialization"))
-    GTEST_SKIP() << (fixture / "node_modules").string()
-                 << " lacks @mcap/core or @foxglove/rosmsg2-serialization: run npm ci --prefix "
-                 << fixture.string() << " (scripts/install-deps does)";
+  const std::string missing =
+      test_util::node_fixture_missing({"@mcap/core", "@foxglove/rosmsg2-serialization"});
+  if (!missing.empty()) GTEST_SKIP() << missing;
+  const fs::path fixture = test_util::node_fixture_dir();
+  const std::string node = test_util::find_node();
 
   const fs::path dir = test::temp_dir("work");
   const fs::path sim = dir / "sim", mcap = dir / "sim.mcap", out = dir / "imported";

@@ -1,9 +1,11 @@
 #pragma once
 // What the rgbdt_import tests share: running a command with its output kept, the system
-// Python (Debian's ROS 1 modules live in its dist-packages), and the check that a session
-// imported from a bag equals the simulated session the bag was written from.
+// Python (Debian's ROS 1 modules live in its dist-packages), node and the ROS 2 fixture
+// writer's npm packages, and the check that a session imported from a bag equals the
+// simulated session the bag was written from.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -12,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/camera_info.hpp"
@@ -44,6 +47,39 @@ inline std::string ros1_fixture(const std::string& script) {
   const std::string python =
       std::filesystem::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
   return python + " " + RGBDT_SOURCE_DIR + "/tests/fixtures/" + script;
+}
+
+/// The node program on PATH, or "" when there is none.
+inline std::string find_node() {
+  const char* path = std::getenv("PATH");
+  std::stringstream dirs(path != nullptr ? path : "/usr/bin:/bin");
+  std::string dir;
+  while (std::getline(dirs, dir, ':')) {
+    const std::filesystem::path candidate = std::filesystem::path(dir.empty() ? "." : dir) / "node";
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate.string();
+  }
+  return "";
+}
+
+/// <source>/tests/fixtures/mcap: write_mcap.mjs and its package.json.
+inline std::filesystem::path node_fixture_dir() {
+  return std::filesystem::path(RGBDT_SOURCE_DIR) / "tests" / "fixtures" / "mcap";
+}
+
+/// Why the ROS 2 fixture writer (tests/fixtures/mcap/write_mcap.mjs) cannot run here, or ""
+/// when it can: node must be on PATH and `packages` (npm names) in its node_modules. A test
+/// skips with this reason: node and npm come from scripts/install-deps, not from the build.
+inline std::string node_fixture_missing(const std::vector<std::string>& packages) {
+  if (find_node().empty())
+    return "node is not on PATH (Debian package nodejs; scripts/install-deps)";
+  const std::filesystem::path modules = node_fixture_dir() / "node_modules";
+  for (const std::string& package : packages) {
+    if (!std::filesystem::is_directory(modules / package)) {
+      return modules.string() + " lacks " + package + ": run npm ci --prefix " +
+             node_fixture_dir().string() + " (scripts/install-deps does)";
+    }
+  }
+  return "";
 }
 
 /// The mapping session imported into `imported_dir` equals the simulated one in `sim_dir`:
