@@ -489,106 +489,130 @@ struct Candidate {
   cv::Mat image;
 };
 
-// Pass 2: accumulates each kept interval's clouds and keeps each camera's frame nearest its
-// middle; views are written as their intervals close.
-ImportResult import_calibration(const ImportOptions& options, Plan& plan, StagingDir& dir,
-                                std::FILE* report) {
-  ImportResult result;
-  core::CalibrationSession session;
-  session.target =
-      core::parse_calibration_session(
-          "target: " + options.target_yaml + "\ncameras: {}\nviews: [{cloud: x.pcd, images: {}}]\n",
-          "--target")
-          .target;
+// The board of --target, checked as session.yaml's target entry.
+core::TargetSpec board_target(const ImportOptions& options) {
+  return core::parse_calibration_session("target: " + options.target_yaml +
+                                             "\ncameras: {}\nviews: [{cloud: x.pcd, images: {}}]\n",
+                                         "--target")
+      .target;
+}
 
-  std::vector<Interval> intervals;
+// The intervals that may become views: the still camera's (pass 1), or without a camera the
+// imported time range as one still interval.
+std::vector<Interval> candidate_intervals(const ImportOptions& options, const Plan& plan) {
   if (plan.cameras.empty()) {
-    // Without a camera, the imported time range is one still interval.
+    std::vector<Interval> intervals;
     Interval all;
     all.start_ns = plan.window.start_ns;
     all.end_ns = plan.window.end_ns;
     intervals.push_back(std::move(all));
-  } else {
-    auto still = std::find_if(plan.cameras.begin(), plan.cameras.end(), [&](const Camera& c) {
-      return c.source.name == options.still_camera;
-    });
-    if (options.still_camera.empty()) still = plan.cameras.begin();
-    if (still == plan.cameras.end()) {
-      throw std::invalid_argument("--still-camera " + options.still_camera +
-                                  " is not one of the --camera names");
-    }
-    intervals = find_still_intervals(options, plan, *still);
+    return intervals;
   }
+  auto still = std::find_if(plan.cameras.begin(), plan.cameras.end(),
+                            [&](const Camera& c) { return c.source.name == options.still_camera; });
+  if (options.still_camera.empty()) still = plan.cameras.begin();
+  if (still == plan.cameras.end()) {
+    throw std::invalid_argument("--still-camera " + options.still_camera +
+                                " is not one of the --camera names");
+  }
+  return find_still_intervals(options, plan, *still);
+}
 
-  std::vector<std::string> topics = {plan.lidar.name};
+// The topics pass 2 reads and the cameras each image or CameraInfo topic serves.
+struct Routes {
+  std::vector<std::string> topics;
   std::map<std::string, std::vector<std::size_t>> by_image, by_info;  // -> camera indices
+};
+
+// The routes of pass 2; the intrinsics of cameras with --intrinsics are written here.
+Routes route_topics(Plan& plan, const StagingDir& dir) {
+  Routes routes;
+  routes.topics = {plan.lidar.name};
   for (std::size_t c = 0; c < plan.cameras.size(); ++c) {
     Camera& camera = plan.cameras[c];
-    topics.push_back(camera.image.name);
-    by_image[camera.image.name].push_back(c);
+    routes.topics.push_back(camera.image.name);
+    routes.by_image[camera.image.name].push_back(c);
     if (camera.info) {
-      topics.push_back(camera.info->name);
-      by_info[camera.info->name].push_back(c);
+      routes.topics.push_back(camera.info->name);
+      routes.by_info[camera.info->name].push_back(c);
     } else {
       write_intrinsics(camera, dir, nullptr);
     }
   }
-  fs::create_directories(dir / "clouds");
-  std::vector<std::vector<Candidate>> candidates(intervals.size(),
-                                                 std::vector<Candidate>(plan.cameras.size()));
-  // The interval index a time falls in, or -1 (intervals are sorted and disjoint).
-  const auto interval_of = [&](std::int64_t t) -> long {
-    const auto it =
-        std::upper_bound(intervals.begin(), intervals.end(), t,
-                         [](std::int64_t v, const Interval& i) { return v < i.start_ns; });
-    if (it == intervals.begin()) return -1;
-    const long i = static_cast<long>(it - intervals.begin()) - 1;
-    return t <= intervals[i].end_ns ? i : -1;
-  };
+  return routes;
+}
 
-  const auto reader = open_topics(options, plan, topics);
+// The interval index a time falls in, or -1 (intervals are sorted and disjoint).
+long interval_of(const std::vector<Interval>& intervals, std::int64_t t) {
+  const auto it =
+      std::upper_bound(intervals.begin(), intervals.end(), t,
+                       [](std::int64_t v, const Interval& i) { return v < i.start_ns; });
+  if (it == intervals.begin()) return -1;
+  const long i = static_cast<long>(it - intervals.begin()) - 1;
+  return t <= intervals[i].end_ns ? i : -1;
+}
+
+// What pass 2 gathers: per interval its clouds accumulated and, per camera, the frame
+// nearest its middle.
+struct ViewData {
+  std::vector<Interval> intervals;
+  std::vector<std::vector<Candidate>> candidates;  // [interval][camera]
+};
+
+// A LIDAR cloud joins the kept interval it starts in.
+void add_cloud(const ImportOptions& options, const bag::BagMessage& message,
+               const bag::MessageContext& context, ViewData& data, ImportResult& result) {
+  PcdCloud cloud = decode_cloud(message, context);
+  const long i = interval_of(data.intervals, cloud.first_time_ns);
+  if (i < 0 || !data.intervals[i].dropped.empty()) return;
+  Interval& interval = data.intervals[i];
+  if (interval.cloud.size() + cloud.size() > options.max_view_points) {
+    throw core::Error(options.bag.string(),
+                      "the still interval from " + format_time(interval.start_ns) +
+                          " s holds more than " + std::to_string(options.max_view_points) +
+                          " points (narrow it with --start/--end, or raise --max-view-points)");
+  }
+  append_cloud(interval.cloud, cloud);
+  ++interval.clouds;
+  ++result.clouds;
+}
+
+// Camera c's frame becomes its candidate for the kept interval it falls in when nearer the
+// interval's middle than the one so far.
+void consider_frame(const Camera& camera, std::size_t c, const bag::BagMessage& message,
+                    const bag::MessageContext& context, ViewData& data) {
+  std::int64_t t_ns = 0;
+  // Only frames inside a kept interval are decoded fully; the header stamp comes first.
+  const bag::Header header =
+      camera.compressed ? bag::decode_compressed_image(message.data, message.size, context).header
+                        : bag::decode_image(message.data, message.size, context).header;
+  t_ns = stamp_or_log_time(header, message.log_time_ns);
+  const long i = interval_of(data.intervals, t_ns);
+  if (i < 0 || !data.intervals[i].dropped.empty()) return;
+  Candidate& best = data.candidates[i][c];
+  const std::int64_t distance = std::llabs(t_ns - data.intervals[i].middle_ns());
+  if (distance < best.distance_ns) {
+    best.distance_ns = distance;
+    best.image = decode_frame(camera, message, context, &t_ns);
+  }
+}
+
+// Pass 2: reads the LIDAR, image and CameraInfo messages into `data` and the cameras'
+// intrinsics files.
+void collect_views(const ImportOptions& options, Plan& plan, const StagingDir& dir,
+                   const Routes& routes, ViewData& data, ImportResult& result) {
+  const auto reader = open_topics(options, plan, routes.topics);
   Progress progress("rgbdt_import (pass 2 of 2: views)", bag_bytes(options.bag));
   while (const auto message = reader->next()) {
     check_interrupt();
     progress.add(message->size);
     const bag::MessageContext context = bag::context_of(*message);
-    if (message->topic->name == plan.lidar.name) {
-      PcdCloud cloud = decode_cloud(*message, context);
-      const long i = interval_of(cloud.first_time_ns);
-      if (i >= 0 && intervals[i].dropped.empty()) {
-        Interval& interval = intervals[i];
-        if (interval.cloud.size() + cloud.size() > options.max_view_points) {
-          throw core::Error(
-              options.bag.string(),
-              "the still interval from " + format_time(interval.start_ns) + " s holds more than " +
-                  std::to_string(options.max_view_points) +
-                  " points (narrow it with --start/--end, or raise --max-view-points)");
-        }
-        append_cloud(interval.cloud, cloud);
-        ++interval.clouds;
-        ++result.clouds;
-      }
+    if (message->topic->name == plan.lidar.name)
+      add_cloud(options, *message, context, data, result);
+    if (const auto it = routes.by_image.find(message->topic->name); it != routes.by_image.end()) {
+      for (std::size_t c : it->second) consider_frame(plan.cameras[c], c, *message, context, data);
     }
-    if (const auto it = by_image.find(message->topic->name); it != by_image.end()) {
-      for (std::size_t c : it->second) {
-        std::int64_t t_ns = 0;
-        // Only frames inside a kept interval are decoded fully; the header stamp comes first.
-        const bag::Header header =
-            plan.cameras[c].compressed
-                ? bag::decode_compressed_image(message->data, message->size, context).header
-                : bag::decode_image(message->data, message->size, context).header;
-        t_ns = stamp_or_log_time(header, message->log_time_ns);
-        const long i = interval_of(t_ns);
-        if (i < 0 || !intervals[i].dropped.empty()) continue;
-        Candidate& best = candidates[i][c];
-        const std::int64_t distance = std::llabs(t_ns - intervals[i].middle_ns());
-        if (distance < best.distance_ns) {
-          best.distance_ns = distance;
-          best.image = decode_frame(plan.cameras[c], *message, context, &t_ns);
-        }
-      }
-    }
-    if (const auto it = by_info.find(message->topic->name); it != by_info.end()) {
+    if (const auto it = routes.by_info.find(message->topic->name); it != routes.by_info.end()) {
       for (std::size_t c : it->second) {
         if (!plan.cameras[c].have_intrinsics) write_intrinsics(plan.cameras[c], dir, &*message);
       }
@@ -596,44 +620,83 @@ ImportResult import_calibration(const ImportOptions& options, Plan& plan, Stagin
   }
   progress.finish();
   result.messages = progress.messages();
-  require_intrinsics(plan.cameras, options);
+}
 
-  // Views: the kept intervals with a cloud and an image of every camera, numbered in order.
-  for (std::size_t i = 0; i < intervals.size(); ++i) {
-    Interval& interval = intervals[i];
-    if (interval.dropped.empty() && interval.cloud.size() == 0) {
-      interval.dropped =
-          interval.clouds == 0 ? "no LIDAR cloud inside it" : "its clouds have no finite point";
-    }
-    for (std::size_t c = 0; c < plan.cameras.size() && interval.dropped.empty(); ++c) {
-      if (candidates[i][c].image.empty())
-        interval.dropped = "no " + plan.cameras[c].source.name + " image inside it";
-    }
-    std::string span = plan.cameras.empty()
-                           ? std::string("the whole imported range")
-                           : format_time(interval.start_ns) + " - " + format_time(interval.end_ns) +
-                                 " s (" + std::to_string(interval.frames) + " still frames)";
+// Why a kept interval still cannot be a view after pass 2; empty when it can.
+std::string missing_data(const Interval& interval, const std::vector<Candidate>& frames,
+                         const Plan& plan) {
+  if (interval.cloud.size() == 0) {
+    return interval.clouds == 0 ? "no LIDAR cloud inside it" : "its clouds have no finite point";
+  }
+  for (std::size_t c = 0; c < plan.cameras.size(); ++c) {
+    if (frames[c].image.empty()) return "no " + plan.cameras[c].source.name + " image inside it";
+  }
+  return "";
+}
+
+// An interval as the lines of the report name it.
+std::string interval_span(const Interval& interval, const Plan& plan) {
+  return plan.cameras.empty()
+             ? std::string("the whole imported range")
+             : format_time(interval.start_ns) + " - " + format_time(interval.end_ns) + " s (" +
+                   std::to_string(interval.frames) + " still frames)";
+}
+
+// View `name` from an interval: its accumulated cloud and each camera's frame.
+core::CalibrationView write_view(const std::string& name, const Interval& interval,
+                                 const std::vector<Candidate>& frames, const Plan& plan,
+                                 const StagingDir& dir) {
+  core::CalibrationView view;
+  view.cloud = (dir / ("clouds/" + name + ".pcd")).string();
+  core::write_file_atomic(view.cloud, format_pcd(interval.cloud));
+  for (std::size_t c = 0; c < plan.cameras.size(); ++c) {
+    const std::string& cam = plan.cameras[c].source.name;
+    const fs::path png = dir / (cam + "/" + name + ".png");
+    write_png(png, frames[c].image);
+    view.images[cam] = png.string();
+  }
+  return view;
+}
+
+// Views: the kept intervals with a cloud and an image of every camera, numbered in order;
+// one line per interval to `report`.
+void write_views(ViewData& data, const Plan& plan, const StagingDir& dir, std::FILE* report,
+                 core::CalibrationSession& session) {
+  for (std::size_t i = 0; i < data.intervals.size(); ++i) {
+    Interval& interval = data.intervals[i];
+    if (interval.dropped.empty())
+      interval.dropped = missing_data(interval, data.candidates[i], plan);
+    std::string span = interval_span(interval, plan);
     if (!interval.dropped.empty()) {
       std::fprintf(report, "interval %zu: %s: dropped, %s\n", i, span.c_str(),
                    interval.dropped.c_str());
       continue;
     }
     const std::string name = index_name(session.views.size(), 3);
-    core::CalibrationView view;
-    view.cloud = (dir / ("clouds/" + name + ".pcd")).string();
-    core::write_file_atomic(view.cloud, format_pcd(interval.cloud));
-    for (std::size_t c = 0; c < plan.cameras.size(); ++c) {
-      const std::string& cam = plan.cameras[c].source.name;
-      const fs::path png = dir / (cam + "/" + name + ".png");
-      write_png(png, candidates[i][c].image);
-      view.images[cam] = png.string();
-    }
+    core::CalibrationView view = write_view(name, interval, data.candidates[i], plan, dir);
     std::fprintf(report, "interval %zu: %s: kept as view %s (%zu clouds, %zu points)\n", i,
                  span.c_str(), name.c_str(), interval.clouds, interval.cloud.size());
     session.views.push_back(std::move(view));
     interval.cloud = PcdCloud{};
-    candidates[i].clear();
+    data.candidates[i].clear();
   }
+}
+
+// Pass 2: accumulates each kept interval's clouds and keeps each camera's frame nearest its
+// middle; views are written as their intervals close.
+ImportResult import_calibration(const ImportOptions& options, Plan& plan, StagingDir& dir,
+                                std::FILE* report) {
+  ImportResult result;
+  core::CalibrationSession session;
+  session.target = board_target(options);
+  ViewData data;
+  data.intervals = candidate_intervals(options, plan);
+  const Routes routes = route_topics(plan, dir);
+  fs::create_directories(dir / "clouds");
+  data.candidates.assign(data.intervals.size(), std::vector<Candidate>(plan.cameras.size()));
+  collect_views(options, plan, dir, routes, data, result);
+  require_intrinsics(plan.cameras, options);
+  write_views(data, plan, dir, report, session);
   if (session.views.empty()) {
     throw core::Error(options.bag.string(),
                       "no still interval became a view (see the lines above; "

@@ -34,82 +34,87 @@ std::map<std::string, std::string> name_value_pairs(const std::vector<std::strin
   return out;
 }
 
-}  // namespace
+constexpr char kDescription[] =
+    "rgbdt_import: a ROS bag into an rgbdt session folder (session.yaml, PCD clouds, PNG "
+    "frames,\n"
+    "camera_info YAML), ready for rgbdt_calibrate or rgbdt_mapper.\n"
+    "Bags: ROS 2 MCAP (.mcap), ROS 2 sqlite3 (.db3, a file or a rosbag2 folder), ROS 1 (.bag).\n"
+    "Messages: sensor_msgs PointCloud2 (any field layout; per-point times of Velodyne, Ouster,\n"
+    "Livox, Hesai), Image (mono8, mono16, 8UC1, 16UC1, rgb8, bgr8, rgba8, bgra8, bayer_*8),\n"
+    "CompressedImage (jpeg, png), CameraInfo (plumb_bob, equidistant), Imu.\n"
+    "\n"
+    "--kind mapping writes clouds/NNNNNN.pcd (x y z, and intensity, ring, t [s from the\n"
+    "cloud's earliest point] when the cloud has them; non-finite points and points at the\n"
+    "origin (the missing-return marker of Hesai and Ouster drivers) dropped) with\n"
+    "clouds/index.csv (time_s = the earliest point's time), <camera>/NNNNNN.png with\n"
+    "<camera>/index.csv (time_s = header stamp), <camera>.yaml, session.yaml, and with --imu\n"
+    "imu.csv (time_s,wx,wy,wz,ax,ay,az; rgbdt_mapper does not read IMU samples yet, so\n"
+    "session.yaml does not name it).\n"
+    "--kind calibration finds the intervals where the board is held still: the first camera's\n"
+    "(or --still-camera's) consecutive frames differ by less than --still-threshold; runs of at\n"
+    "least --min-still-frames frames are kept. Each kept interval becomes a view: every LIDAR\n"
+    "cloud inside it accumulated into clouds/NNN.pcd (non-repetitive LIDARs need it) and each\n"
+    "camera's frame nearest its middle as <camera>/NNN.png. One line per interval says whether\n"
+    "it was kept and why not. Without --camera, the imported time range is one view (for\n"
+    "rgbdt_calibrate --lidar-only).\n"
+    "Times are header stamps (the log time when a stamp is 0). The session is written to a\n"
+    "hidden sibling folder and renamed to --out at the end: a failed or interrupted import\n"
+    "leaves no session behind. Progress goes to stderr at most once a second.\n"
+    "\n"
+    "Examples:\n"
+    "  rgbdt_import run.mcap --out street --kind mapping --lidar /velodyne_points \\\n"
+    "      --camera rgb=/camera/image_raw --camera thermal=/flir/image_raw/compressed \\\n"
+    "      --imu /imu/data --start 10 --end 70\n"
+    "  rgbdt_import board.bag --out calib --kind calibration --lidar /lidar_points \\\n"
+    "      --camera rgb=/camera/image_raw --intrinsics rgb=rgb.yaml \\\n"
+    "      --target '{type: circle_hole, radius: 0.12, holes: [[-0.25, 0.2], [0.25, 0.2], "
+    "[-0.25, -0.2], [0.25, -0.2]]}'\n"
+    "\n"
+    "Exit codes: 0 session written; 1 bad input (a topic not in the bag, a type or encoding\n"
+    "that cannot be read, a damaged message: named with the topic and the bag); 130\n"
+    "interrupted.";
 
-int main(int argc, char** argv) {
-  CLI::App app{
-      "rgbdt_import: a ROS bag into an rgbdt session folder (session.yaml, PCD clouds, PNG "
-      "frames,\n"
-      "camera_info YAML), ready for rgbdt_calibrate or rgbdt_mapper.\n"
-      "Bags: ROS 2 MCAP (.mcap), ROS 2 sqlite3 (.db3, a file or a rosbag2 folder), ROS 1 (.bag).\n"
-      "Messages: sensor_msgs PointCloud2 (any field layout; per-point times of Velodyne, Ouster,\n"
-      "Livox, Hesai), Image (mono8, mono16, 8UC1, 16UC1, rgb8, bgr8, rgba8, bgra8, bayer_*8),\n"
-      "CompressedImage (jpeg, png), CameraInfo (plumb_bob, equidistant), Imu.\n"
-      "\n"
-      "--kind mapping writes clouds/NNNNNN.pcd (x y z, and intensity, ring, t [s from the\n"
-      "cloud's earliest point] when the cloud has them; non-finite points and points at the\n"
-      "origin (the missing-return marker of Hesai and Ouster drivers) dropped) with\n"
-      "clouds/index.csv (time_s = the earliest point's time), <camera>/NNNNNN.png with\n"
-      "<camera>/index.csv (time_s = header stamp), <camera>.yaml, session.yaml, and with --imu\n"
-      "imu.csv (time_s,wx,wy,wz,ax,ay,az; rgbdt_mapper does not read IMU samples yet, so\n"
-      "session.yaml does not name it).\n"
-      "--kind calibration finds the intervals where the board is held still: the first camera's\n"
-      "(or --still-camera's) consecutive frames differ by less than --still-threshold; runs of at\n"
-      "least --min-still-frames frames are kept. Each kept interval becomes a view: every LIDAR\n"
-      "cloud inside it accumulated into clouds/NNN.pcd (non-repetitive LIDARs need it) and each\n"
-      "camera's frame nearest its middle as <camera>/NNN.png. One line per interval says whether\n"
-      "it was kept and why not. Without --camera, the imported time range is one view (for\n"
-      "rgbdt_calibrate --lidar-only).\n"
-      "Times are header stamps (the log time when a stamp is 0). The session is written to a\n"
-      "hidden sibling folder and renamed to --out at the end: a failed or interrupted import\n"
-      "leaves no session behind. Progress goes to stderr at most once a second.\n"
-      "\n"
-      "Examples:\n"
-      "  rgbdt_import run.mcap --out street --kind mapping --lidar /velodyne_points \\\n"
-      "      --camera rgb=/camera/image_raw --camera thermal=/flir/image_raw/compressed \\\n"
-      "      --imu /imu/data --start 10 --end 70\n"
-      "  rgbdt_import board.bag --out calib --kind calibration --lidar /lidar_points \\\n"
-      "      --camera rgb=/camera/image_raw --intrinsics rgb=rgb.yaml \\\n"
-      "      --target '{type: circle_hole, radius: 0.12, holes: [[-0.25, 0.2], [0.25, 0.2], "
-      "[-0.25, -0.2], [0.25, -0.2]]}'\n"
-      "\n"
-      "Exit codes: 0 session written; 1 bad input (a topic not in the bag, a type or encoding\n"
-      "that cannot be read, a damaged message: named with the topic and the bag); 130\n"
-      "interrupted."};
-  rgbdt::apps::add_config_option(app, argc, argv);
+// The command line: ImportOptions and what becomes of them after parsing.
+struct Arguments {
   imp::ImportOptions options;
   std::string bag, out, kind;
   std::vector<std::string> cameras, camera_infos, intrinsics;
   double start_s = 0, end_s = 0;
+  CLI::Option* start = nullptr;  // given when *start
+  CLI::Option* end = nullptr;
   bool verbose = false;
-  app.add_option("BAG", bag, "the bag: a .mcap, .db3 or .bag file, or a rosbag2 folder")
+};
+
+void add_options(CLI::App& app, Arguments& args) {
+  imp::ImportOptions& options = args.options;
+  app.add_option("BAG", args.bag, "the bag: a .mcap, .db3 or .bag file, or a rosbag2 folder")
       ->required();
-  app.add_option("--out", out, "the session folder to write (must not exist, or be empty)")
+  app.add_option("--out", args.out, "the session folder to write (must not exist, or be empty)")
       ->required();
-  app.add_option("--kind", kind,
+  app.add_option("--kind", args.kind,
                  "calibration (still intervals become views) or mapping (every message)")
       ->required()
       ->check(CLI::IsMember({"calibration", "mapping"}));
   app.add_option("--lidar", options.lidar_topic, "the LIDAR's sensor_msgs/PointCloud2 topic")
       ->required();
-  app.add_option("--camera", cameras,
+  app.add_option("--camera", args.cameras,
                  "NAME=TOPIC: a camera's Image or CompressedImage topic (repeatable); NAME is the "
                  "session's camera name, e.g. rgb or thermal");
   app.add_option(
-      "--camera-info", camera_infos,
+      "--camera-info", args.camera_infos,
       "NAME=TOPIC: the camera's CameraInfo topic (repeatable); default: the image topic's "
       "sibling camera_info (/cam/image_raw[/compressed] -> /cam/camera_info). The first "
       "message becomes <NAME>.yaml");
   app.add_option(
-      "--intrinsics", intrinsics,
+      "--intrinsics", args.intrinsics,
       "NAME=FILE: a camera_info YAML to copy as <NAME>.yaml instead of reading CameraInfo "
       "(repeatable)");
   app.add_option("--imu", options.imu_topic,
                  "a sensor_msgs/Imu topic, written to imu.csv (mapping)");
-  auto* start = app.add_option("--start", start_s,
-                               "import from this many seconds after the bag's first message");
-  auto* end = app.add_option("--end", end_s,
-                             "import up to this many seconds after the bag's first message");
+  args.start = app.add_option("--start", args.start_s,
+                              "import from this many seconds after the bag's first message");
+  args.end = app.add_option("--end", args.end_s,
+                            "import up to this many seconds after the bag's first message");
   app.add_option("--target", options.target_yaml,
                  "calibration: the board as session.yaml's target entry, e.g. '{type: circle_hole, "
                  "radius: 0.30}' or with board_size: [w, h] and holes: [[x, y], ...] [m] (required "
@@ -131,65 +136,78 @@ int main(int argc, char** argv) {
                  "calibration: the most points one view may accumulate (a bound on memory)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  app.add_flag("-v,--verbose", verbose, "print library log messages (debug level)");
-  try {
-    app.parse(argc, argv);
-    options.bag = bag;
-    options.out = out;
-    options.kind =
-        kind == "calibration" ? imp::SessionKind::kCalibration : imp::SessionKind::kMapping;
-    if (*start) options.start_s = start_s;
-    if (*end) options.end_s = end_s;
-    const auto camera_map = name_value_pairs(cameras, "--camera");
-    const auto info_map = name_value_pairs(camera_infos, "--camera-info");
-    const auto intrinsics_map = name_value_pairs(intrinsics, "--intrinsics");
-    for (const std::string& item : cameras) {
-      imp::CameraSource source;
-      source.name = item.substr(0, item.find('='));
-      source.topic = camera_map.at(source.name);
-      if (info_map.count(source.name)) source.info_topic = info_map.at(source.name);
-      if (intrinsics_map.count(source.name)) source.intrinsics = intrinsics_map.at(source.name);
-      if (!source.info_topic.empty() && !source.intrinsics.empty()) {
-        throw CLI::ValidationError(
-            "--intrinsics", "camera " + source.name + " has both --camera-info and --intrinsics");
-      }
-      options.cameras.push_back(source);
-    }
-    for (const auto* map : {&info_map, &intrinsics_map}) {
-      for (const auto& [name, value] : *map) {
-        if (!camera_map.count(name)) {
-          throw CLI::ValidationError(map == &info_map ? "--camera-info" : "--intrinsics",
-                                     "camera " + name + " is not named by --camera");
-        }
-      }
-    }
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+  app.add_flag("-v,--verbose", args.verbose, "print library log messages (debug level)");
+}
 
-  core::set_log_sink(core::stderr_log_sink);
-  core::set_log_level(verbose ? core::LogLevel::kDebug : core::LogLevel::kWarning);
-  core::install_interrupt_handler();
+// The cameras of --camera, in order, with their --camera-info or --intrinsics; throws
+// CLI::ValidationError naming the option of a pair that names no camera or a camera given both.
+std::vector<imp::CameraSource> camera_sources(const Arguments& args) {
+  const auto camera_map = name_value_pairs(args.cameras, "--camera");
+  const auto info_map = name_value_pairs(args.camera_infos, "--camera-info");
+  const auto intrinsics_map = name_value_pairs(args.intrinsics, "--intrinsics");
+  std::vector<imp::CameraSource> sources;
+  for (const std::string& item : args.cameras) {
+    imp::CameraSource source;
+    source.name = item.substr(0, item.find('='));
+    source.topic = camera_map.at(source.name);
+    if (info_map.count(source.name)) source.info_topic = info_map.at(source.name);
+    if (intrinsics_map.count(source.name)) source.intrinsics = intrinsics_map.at(source.name);
+    if (!source.info_topic.empty() && !source.intrinsics.empty()) {
+      throw CLI::ValidationError(
+          "--intrinsics", "camera " + source.name + " has both --camera-info and --intrinsics");
+    }
+    sources.push_back(source);
+  }
+  for (const auto* map : {&info_map, &intrinsics_map}) {
+    for (const auto& [name, value] : *map) {
+      if (!camera_map.count(name)) {
+        throw CLI::ValidationError(map == &info_map ? "--camera-info" : "--intrinsics",
+                                   "camera " + name + " is not named by --camera");
+      }
+    }
+  }
+  return sources;
+}
+
+// The rest of ImportOptions from the parsed command line.
+void complete_options(Arguments& args) {
+  imp::ImportOptions& options = args.options;
+  options.bag = args.bag;
+  options.out = args.out;
+  options.kind =
+      args.kind == "calibration" ? imp::SessionKind::kCalibration : imp::SessionKind::kMapping;
+  if (*args.start) options.start_s = args.start_s;
+  if (*args.end) options.end_s = args.end_s;
+  for (const imp::CameraSource& source : camera_sources(args)) options.cameras.push_back(source);
+}
+
+void print_summary(const imp::ImportOptions& options, const imp::ImportResult& r,
+                   const std::string& out, double seconds) {
+  std::string frames;
+  for (const auto& [name, n] : r.frames)
+    frames += ", " + std::to_string(n) + " " + name + " frames";
+  if (options.kind == imp::SessionKind::kMapping) {
+    std::printf("mapping session: %zu messages read, %zu clouds%s%s -> %s (%.1f s)\n", r.messages,
+                r.clouds, frames.c_str(),
+                options.imu_topic.empty()
+                    ? ""
+                    : (", " + std::to_string(r.imu_samples) + " IMU samples").c_str(),
+                out.c_str(), seconds);
+  } else {
+    std::printf(
+        "calibration session: %zu messages read, %zu views from %zu clouds -> %s (%.1f s)\n",
+        r.messages, r.views, r.clouds, out.c_str(), seconds);
+  }
+}
+
+// The import and its summary; returns the exit code.
+int run(const imp::ImportOptions& options, const std::string& out) {
   const auto t0 = std::chrono::steady_clock::now();
   try {
     const imp::ImportResult r = imp::import_bag(options, stdout);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::string frames;
-    for (const auto& [name, n] : r.frames)
-      frames += ", " + std::to_string(n) + " " + name + " frames";
-    if (options.kind == imp::SessionKind::kMapping) {
-      std::printf("mapping session: %zu messages read, %zu clouds%s%s -> %s (%.1f s)\n", r.messages,
-                  r.clouds, frames.c_str(),
-                  options.imu_topic.empty()
-                      ? ""
-                      : (", " + std::to_string(r.imu_samples) + " IMU samples").c_str(),
-                  out.c_str(), seconds);
-    } else {
-      std::printf(
-          "calibration session: %zu messages read, %zu views from %zu clouds -> %s (%.1f s)\n",
-          r.messages, r.views, r.clouds, out.c_str(), seconds);
-    }
+    print_summary(options, r, out, seconds);
   } catch (const imp::Interrupted&) {
     std::fprintf(stderr, "rgbdt_import: interrupted; no session was written\n");
     return 130;
@@ -198,4 +216,24 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{kDescription};
+  rgbdt::apps::add_config_option(app, argc, argv);
+  Arguments args;
+  add_options(app, args);
+  try {
+    app.parse(argc, argv);
+    complete_options(args);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  core::set_log_sink(core::stderr_log_sink);
+  core::set_log_level(args.verbose ? core::LogLevel::kDebug : core::LogLevel::kWarning);
+  core::install_interrupt_handler();
+  return run(args.options, args.out);
 }
