@@ -54,6 +54,21 @@ class ChunkChecker {
     }
   }
 
+  // Checks the records the library reads as the summary section: from the Footer's
+  // summary_start (and summary_offset_start) on. A hostile file can put a Chunk there, off the
+  // path of the walk from the start, and the library decompresses it while reading the summary.
+  void walk_summary() {
+    // Footer: opcode, record length, summary_start, summary_offset_start, summary_crc; magic.
+    std::uint8_t footer[9 + 20];
+    if (size_ < sizeof(footer) + 8 || !read(size_ - 8 - sizeof(footer), footer, sizeof(footer)) ||
+        footer[0] != 0x02) {
+      return;  // no footer: the library scans from the start, which walk(8) covered
+    }
+    for (const std::uint64_t start : {load_u64(footer + 9), load_u64(footer + 17)}) {
+      if (start != 0) walk(start);
+    }
+  }
+
   bool checked(std::uint64_t offset) const { return checked_.count(offset) > 0; }
 
   // Checks the Chunk record starting at `offset`, if there is one.
@@ -122,10 +137,11 @@ class McapFile : public StorageFile {
     const mcap::Status opened = reader_.open(path.string());
     if (!opened.ok()) fail("cannot open as MCAP: " + opened.message);
     // Every chunk the scans below or the readers (in file order from the first record, in log
-    // time order from the chunk indexes) decompress, checked first; the summary section is
-    // read without decompressing.
+    // time order from the chunk indexes) decompress, checked first, and any Chunk the summary
+    // section holds (the library decompresses it while reading the summary).
     ChunkChecker chunks(path_);
     chunks.walk(8);  // the magic, then the records
+    chunks.walk_summary();
     // A file without its summary and footer (the recorder did not close it) is scanned up to
     // the last intact record.
     complete_ = reader_.readSummary(mcap::ReadSummaryMethod::NoFallbackScan).ok();

@@ -6,6 +6,7 @@
 // below and the mcap library's McapWriter); rewrite them with
 //   bag_fuzz_corpus_test --gtest_also_run_disabled_tests --gtest_filter='*WriteSeeds'
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <mcap/writer.hpp>
 
 #include <algorithm>
@@ -454,6 +455,18 @@ TEST(FuzzCorpus, McapInputsReadWithoutCrashing) {
   // The fuzzer's find in the mcap library: a message index pointing past the end of its
   // chunk, read through an empty optional (patched in third_party/mcap); refused now.
   EXPECT_EQ(read("crash_indexed_message_past_chunk_end"), -1);
+  // The fuzzer's find: an lz4 Chunk record inside the summary section (where the Footer's
+  // summary_start points, off the path of the records walked from the start) stating 4.2 GB
+  // uncompressed, which the library allocated while reading the summary; refused first. Its
+  // read returned -1 before the fix too (the lz4 data is short), after a 4 GB allocation: the
+  // peak memory check below is what catches its return.
+  EXPECT_EQ(read("alloc_lz4_chunk_in_summary"), -1);
+  // No input of the corpus (each a few kB) may make the reader allocate by what a record
+  // claims: this process's peak RSS stays far below the 4.1 GB of the find above (under
+  // ASan too, whose shadow and quarantine stay under ~0.5 GB here).
+  rusage usage{};
+  ASSERT_EQ(getrusage(RUSAGE_SELF, &usage), 0);
+  EXPECT_LT(usage.ru_maxrss, 1024 * 1024) << "peak RSS " << usage.ru_maxrss / 1024 << " MB";
   // rosbag2's own test bags, read in place from ../shared/data (not copied into the corpus);
   // to fuzz from them, pass their folder to the fuzzer beside the corpus.
   const fs::path rosbag2 = fs::path(RGBDT_SHARED_DATA_DIR) / "rosbag2";
