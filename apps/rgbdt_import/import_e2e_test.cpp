@@ -106,7 +106,7 @@ void expect_same_error(double from_bag, double original, double floor, const std
 // the truth within 10 % (floors 0.01 deg and 1 mm) of rgbdt_calibrate's on the original
 // session. Both runs use no seeds: an imported session has none.
 TEST_P(ImportEndToEnd, CalibrationThroughABagScoresAsTheOriginalSession) {
-  if (const std::string missing = writer_missing(); !missing.empty()) GTEST_SKIP() << missing;
+  RGBDT_SKIP_WITHOUT_NODE_FIXTURE(writer_missing());
   const fs::path dir = test::temp_dir("work");
   const fs::path sim = dir / "sim", imported = dir / "imported";
   CommandRun run = run_command(
@@ -174,7 +174,7 @@ double json_number(const std::string& json, const std::string& key, const std::s
 // copied into the imported session. The ROS 2 writer sends rgb as a CompressedImage (the PNG's
 // bytes), the ROS 1 one as a raw Image.
 TEST_P(ImportEndToEnd, MappingThroughABagScoresAsTheOriginalSession) {
-  if (const std::string missing = writer_missing(); !missing.empty()) GTEST_SKIP() << missing;
+  RGBDT_SKIP_WITHOUT_NODE_FIXTURE(writer_missing());
   const fs::path dir = test::temp_dir("work");
   const fs::path sim = dir / "sim", imported = dir / "imported";
   CommandRun run = run_command(test::built_program("rgbdt_sim") + " mapping --out " + sim.string() +

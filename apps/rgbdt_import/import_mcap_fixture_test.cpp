@@ -50,9 +50,8 @@ std::vector<std::vector<std::string>> read_csv(const fs::path& path, std::string
 }
 
 TEST(ImportMcapFixture, SimMappingSessionRoundTripsThroughAnMcapWrittenByRos2Tooling) {
-  const std::string missing =
-      test_util::node_fixture_missing({"@mcap/core", "@foxglove/rosmsg2-serialization"});
-  if (!missing.empty()) GTEST_SKIP() << missing;
+  RGBDT_SKIP_WITHOUT_NODE_FIXTURE(
+      test_util::node_fixture_missing({"@mcap/core", "@foxglove/rosmsg2-serialization"}));
   const fs::path fixture = test_util::node_fixture_dir();
   const std::string node = test_util::find_node();
 

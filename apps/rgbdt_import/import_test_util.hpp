@@ -68,7 +68,8 @@ inline std::filesystem::path node_fixture_dir() {
 
 /// Why the ROS 2 fixture writer (tests/fixtures/mcap/write_mcap.mjs) cannot run here, or ""
 /// when it can: node must be on PATH and `packages` (npm names) in its node_modules. A test
-/// skips with this reason: node and npm come from scripts/install-deps, not from the build.
+/// skips with this reason (node and npm come from scripts/install-deps, not from the build),
+/// except under CI (RGBDT_SKIP_WITHOUT_NODE_FIXTURE).
 inline std::string node_fixture_missing(const std::vector<std::string>& packages) {
   if (find_node().empty())
     return "node is not on PATH (Debian package nodejs; scripts/install-deps)";
@@ -81,6 +82,17 @@ inline std::string node_fixture_missing(const std::vector<std::string>& packages
   }
   return "";
 }
+
+/// Skips the test when the ROS 2 fixture writer cannot run (`missing` says why), but fails it
+/// when the environment sets CI (as `CI=true bash .ci/run` does): CI installs node and the
+/// npm packages first, so a missing one there is a broken install, not a machine without node.
+#define RGBDT_SKIP_WITHOUT_NODE_FIXTURE(missing)                                    \
+  do {                                                                              \
+    if (const std::string why_ = (missing); !why_.empty()) {                        \
+      if (std::getenv("CI") != nullptr) FAIL() << why_ << " (CI is set: required)"; \
+      GTEST_SKIP() << why_;                                                         \
+    }                                                                               \
+  } while (false)
 
 /// The mapping session imported into `imported_dir` equals the simulated one in `sim_dir`:
 /// every cloud point for point (x y z, intensity and ring exactly: they travel as the same
