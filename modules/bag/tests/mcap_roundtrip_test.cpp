@@ -1,6 +1,10 @@
 // MCAP files written by the mcap library's own McapWriter (zstd, lz4 and uncompressed chunks),
 // read back through open_bag and decoded.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+#include <zstd.h>
+
+#include <mcap/reader.hpp>
 #include <mcap/writer.hpp>
 
 #include <filesystem>
@@ -240,6 +244,51 @@ TEST(McapDamaged, CorruptChunkThrowsCoreErrorNamingTheFile) {
     EXPECT_NE(std::string(e.what()).find("corrupt.mcap: MCAP file is damaged"), std::string::npos)
         << e.what();
   }
+}
+
+long peak_rss_mb() {
+  rusage usage{};
+  ::getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024;
+}
+
+// The vendored library's own guard (its "rgbdt patch" in decompressAll): a chunk that states
+// more uncompressed bytes than its data can make is refused before the library allocates them.
+// open_bag checks every Chunk record it knows the library will read first; this holds for any
+// path that check misses. 1.5 GB stated for 1 kB: without the guard the peak RSS grows by it.
+TEST(McapLibrary, ChunkStatingMoreThanItsDataCanMakeIsRefusedBeforeAllocating) {
+  const std::uint64_t stated = 1536ull << 20;
+  const long before = peak_rss_mb();
+
+  const std::vector<std::byte> lz4_data(1024, std::byte{0x5a});
+  mcap::LZ4Reader lz4;
+  lz4.reset(lz4_data.data(), lz4_data.size(), stated);
+  EXPECT_FALSE(lz4.status().ok());
+  EXPECT_NE(lz4.status().message.find("more than 255 times"), std::string::npos)
+      << lz4.status().message;
+  EXPECT_EQ(lz4.size(), 0u);
+
+  // A real zstd frame of 1000 bytes, stated as 1.5 GB.
+  const std::string plain(1000, 'x');
+  std::vector<std::byte> frame(ZSTD_compressBound(plain.size()));
+  const std::size_t n = ZSTD_compress(frame.data(), frame.size(), plain.data(), plain.size(), 3);
+  ASSERT_FALSE(ZSTD_isError(n));
+  frame.resize(n);
+  mcap::ZStdReader zstd;
+  zstd.reset(frame.data(), frame.size(), stated);
+  EXPECT_FALSE(zstd.status().ok());
+  EXPECT_NE(zstd.status().message.find("not the size its frame declares"), std::string::npos)
+      << zstd.status().message;
+  EXPECT_EQ(zstd.size(), 0u);
+
+  EXPECT_LT(peak_rss_mb() - before, 256) << "MB allocated for chunks that were refused";
+
+  // The same frame stated truthfully decompresses.
+  zstd.reset(frame.data(), frame.size(), plain.size());
+  ASSERT_TRUE(zstd.status().ok()) << zstd.status().message;
+  std::byte* out = nullptr;
+  ASSERT_EQ(zstd.read(&out, 0, plain.size()), plain.size());
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(out), plain.size()), plain);
 }
 
 }  // namespace
