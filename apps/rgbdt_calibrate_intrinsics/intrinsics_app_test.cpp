@@ -1,5 +1,6 @@
 // rgbdt_calibrate_intrinsics as a user runs it: bounded search, mixed image sizes, verdicts.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -58,12 +59,22 @@ TEST(RgbdtCalibrateIntrinsics, NoPatternInALargeImageEndsWithNotFound) {
   cv::RNG rng(3);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
   cv::imwrite((dir / "images" / "noise.png").string(), noise);
+  rusage before{};
+  ::getrusage(RUSAGE_CHILDREN, &before);
   const AppRun r = run_app("--images " + (dir / "images").string() + " --cols 8 --rows 6 --square 0.05 --out " +
                                (dir / "cam.yaml").string(),
                            (dir / "run.log").string());
+  rusage after{};
+  ::getrusage(RUSAGE_CHILDREN, &after);
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("noise.png: pattern 8x6 checkerboard not found"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "cam.yaml"));
+  // A hang guard, not a speed target: the search ends in about 0.5 s of CPU; an unbounded
+  // findChessboardCorners on such an image runs for minutes (333 s measured).
+  const auto cpu_s = [](const rusage& u) {
+    return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+  };
+  EXPECT_LT(cpu_s(after) - cpu_s(before), 60.0) << "CPU seconds for one image without the pattern";
 }
 
 // A stray image of another size (sorted first) does not decide the image size: the largest

@@ -18,11 +18,14 @@
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <chrono>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -34,6 +37,7 @@
 #include <vector>
 
 #include "rgbdt/cloud/pcd_io.hpp"
+#include "rgbdt/core/extrinsics.hpp"
 #include "rgbdt/test/process.hpp"
 #include "rgbdt/test/test_util.hpp"
 
@@ -64,7 +68,8 @@ struct RunResult {
   int exit_code = -1;
   int signal = 0;
   bool timed_out = false;
-  std::string output;  // stdout and stderr
+  long peak_rss_mb = 0;  // the app's maximum resident set size
+  std::string output;    // stdout and stderr
   std::string command;
 };
 
@@ -115,17 +120,19 @@ RunResult run_app(const std::string& app, const std::vector<std::string>& args, 
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(kTimeoutS);
   int status = 0;
+  rusage usage{};
   while (true) {
-    const pid_t done = ::waitpid(pid, &status, WNOHANG);
+    const pid_t done = ::wait4(pid, &status, WNOHANG, &usage);
     if (done == pid) break;
     if (std::chrono::steady_clock::now() > deadline) {
       ::kill(pid, SIGKILL);
-      ::waitpid(pid, &status, 0);
+      ::wait4(pid, &status, 0, &usage);
       r.timed_out = true;
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
+  r.peak_rss_mb = usage.ru_maxrss / 1024;
   if (WIFEXITED(status)) {
     r.exited = true;
     r.exit_code = WEXITSTATUS(status);
@@ -275,10 +282,37 @@ std::string u32(std::uint32_t v) {
   return s;
 }
 
+// Overwrites `bytes` at `offset` within point `index` of a DATA binary PCD written by rgbdt_sim
+// (fields x y z intensity ring t: 22 bytes a point, ring at byte 16, t at byte 18).
+void patch_binary_point(const fs::path& pcd, std::size_t index, std::size_t offset,
+                        const std::string& bytes) {
+  std::string text = slurp(pcd);
+  ASSERT_NE(text.find("FIELDS x y z intensity ring t\nSIZE 4 4 4 4 2 4\n"), std::string::npos)
+      << pcd;
+  const std::string data_line = "DATA binary\n";
+  const auto at = text.find(data_line);
+  ASSERT_NE(at, std::string::npos) << pcd;
+  const std::size_t byte = at + data_line.size() + 22 * index + offset;
+  ASSERT_LE(byte + bytes.size(), text.size()) << pcd;
+  text.replace(byte, bytes.size(), bytes);
+  write_bytes(pcd, text);
+}
+
+std::string f32(float v) {
+  std::string s(4, '\0');
+  std::memcpy(s.data(), &v, 4);
+  return s;
+}
+
+// Compressed size 0 with the uncompressed size of 1000 points, and with 0 (PCL's reader
+// segfaults on the second).
 TEST_F(Calibrate, CompressedPcdOfCompressedSizeZeroIsAnError) {
-  write_bytes(session_ / "clouds/000.pcd",
-              pcd_header("binary_compressed", 1000) + u32(0) + u32(12000));
-  expect_clean_failure(run(), "000.pcd", out_);
+  for (const std::uint32_t uncompressed : {12000u, 0u}) {
+    SCOPED_TRACE("uncompressed size " + std::to_string(uncompressed));
+    write_bytes(session_ / "clouds/000.pcd", pcd_header("binary_compressed", 1000) + u32(0) +
+                                                 u32(uncompressed) + std::string(64, '\0'));
+    expect_clean_failure(run(), "000.pcd", out_);
+  }
 }
 
 TEST_F(Calibrate, CompressedPcdClaimingAHugeSizeIsRefusedBeforeAllocating) {
@@ -302,6 +336,30 @@ TEST_F(Calibrate, CompressedPcdWithInflatedPointCountIsAnError) {
   replace_in_file(p, "WIDTH " + n + "\n", "WIDTH " + n4 + "\n");
   replace_in_file(p, "POINTS " + n + "\n", "POINTS " + n4 + "\n");
   expect_clean_failure(run(), "000.pcd", out_);
+}
+
+// A binary PCD whose header claims far more points than the file holds: an error naming the
+// file, not std::bad_alloc from a reserve of the claimed size.
+TEST_F(Calibrate, PcdHeaderClaimingMorePointsThanTheFileHoldsNamesTheFile) {
+  write_bytes(session_ / "clouds/001.pcd",
+              pcd_header("binary", 2000000000) + std::string(1200, '\0'));
+  const auto r = run();
+  expect_clean_failure(r, "001.pcd", out_);
+  EXPECT_EQ(r.output.find("bad_alloc"), std::string::npos) << r.output;
+}
+
+TEST_F(Calibrate, RingOutOfRangeIsAnError) {
+  patch_binary_point(session_ / "clouds/000.pcd", 100, 16, std::string("\xff\xff", 2));
+  expect_clean_failure(run(), "000.pcd", out_);
+}
+
+// A YAML value of the wrong type: the message names the file and the key, not yaml-cpp's
+// "invalid node; this may result from using a map iterator...".
+TEST_F(Calibrate, YamlTypeErrorNamesTheFileAndTheKey) {
+  replace_regex_in_file(session_ / "rgb.yaml", R"(image_width: [0-9]+)", "image_width: {a: 1}");
+  const auto r = run();
+  expect_clean_failure(r, "rgb.yaml", out_);
+  EXPECT_NE(r.output.find("image_width"), std::string::npos) << r.output;
 }
 
 TEST_F(Calibrate, PrincipalPointOutsideTheImageIsAnError) {
@@ -345,20 +403,57 @@ TEST_F(Calibrate, ImageOfAnotherSizeThanItsCameraInfoIsAnError) {
   expect_clean_failure(run(), "000.png", out_);
 }
 
-TEST_F(Calibrate, HugePngHeaderIsRefusedBeforeDecoding) {
-  // A PNG whose IHDR claims 30000 x 30000 RGB pixels (2.7 GB decoded) and holds almost no data.
-  std::string png("\x89PNG\r\n\x1a\n", 8);
+// A PNG chunk: length, type, data, CRC.
+std::string png_chunk(const std::string& type, const std::string& data) {
   auto be32 = [](std::uint32_t v) {
     std::string s(4, '\0');
     for (int i = 0; i < 4; ++i) s[i] = static_cast<char>((v >> (24 - 8 * i)) & 0xff);
     return s;
   };
-  const std::string ihdr =
-      "IHDR" + be32(30000) + be32(30000) + std::string("\x08\x02\x00\x00\x00", 5);
-  png += be32(13) + ihdr + be32(0);  // CRC not checked by the header reader's size test
-  png += be32(0) + "IEND" + be32(0xAE426082u);
-  write_bytes(session_ / "rgb/000.png", png);
-  expect_clean_failure(run(), "000.png", out_);
+  const std::string body = type + data;
+  const auto crc =
+      ::crc32(0, reinterpret_cast<const Bytef*>(body.data()), static_cast<uInt>(body.size()));
+  return be32(static_cast<std::uint32_t>(data.size())) + body +
+         be32(static_cast<std::uint32_t>(crc));
+}
+
+// A valid PNG of 30000 x 30000 RGB pixels, all black: 2.7 GB decoded from 2.6 MB of file.
+std::string decompression_bomb_png() {
+  constexpr std::uint32_t kSide = 30000;
+  std::string ihdr;
+  for (const std::uint32_t v : {kSide, kSide}) {
+    for (int i = 0; i < 4; ++i) ihdr += static_cast<char>((v >> (24 - 8 * i)) & 0xff);
+  }
+  ihdr += std::string("\x08\x02\x00\x00\x00", 5);  // 8-bit RGB
+  z_stream z{};
+  EXPECT_EQ(::deflateInit(&z, 1), Z_OK);
+  const std::string row(1 + 3 * kSide, '\0');  // filter byte + pixels
+  std::string idat;
+  std::string buffer(1 << 16, '\0');
+  for (std::uint32_t y = 0; y <= kSide; ++y) {
+    const bool last = y == kSide;
+    z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(row.data()));
+    z.avail_in = last ? 0 : static_cast<uInt>(row.size());
+    do {
+      z.next_out = reinterpret_cast<Bytef*>(buffer.data());
+      z.avail_out = static_cast<uInt>(buffer.size());
+      ::deflate(&z, last ? Z_FINISH : Z_NO_FLUSH);
+      idat.append(buffer.data(), buffer.size() - z.avail_out);
+    } while (z.avail_out == 0);
+  }
+  ::deflateEnd(&z);
+  return std::string("\x89PNG\r\n\x1a\n", 8) + png_chunk("IHDR", ihdr) + png_chunk("IDAT", idat) +
+         png_chunk("IEND", "");
+}
+
+// The header is read first: the image is refused for its size before a decoder allocates
+// 2.7 GB for it.
+TEST_F(Calibrate, HugePngHeaderIsRefusedBeforeDecoding) {
+  write_bytes(session_ / "rgb/000.png", decompression_bomb_png());
+  const auto r = run();
+  expect_clean_failure(r, "000.png", out_);
+  // The apps peak at 100-300 MB on these sessions (under AddressSanitizer too).
+  EXPECT_LT(r.peak_rss_mb, 1024) << r.output;
 }
 
 TEST_F(Calibrate, IntrinsicsNamingANonYamlFileNamesThePathNotItsContents) {
@@ -439,10 +534,59 @@ TEST_F(Mapper, FramesNamingAFolderIsAnError) {
   expect_clean_failure(run(), "rgb", out_);
 }
 
+// The message names the file and what was expected of it, not the file's first line.
+TEST_F(Mapper, FramesNamingAnotherKindOfFileNamesThePathNotItsContents) {
+  replace_in_file(yaml(), "frames: rgb/index.csv", "frames: rgb.yaml");
+  const auto r = run();
+  expect_clean_failure(r, "rgb.yaml", out_);
+  EXPECT_EQ(r.output.find("image_width"), std::string::npos)
+      << "the message quotes the file's contents:\n"
+      << r.output;
+}
+
+// A YAML syntax error is reported with the file it is in, not as yaml-cpp's bare "error at
+// line 3, column 6".
+TEST_F(Mapper, YamlSyntaxErrorNamesTheFile) {
+  write_bytes(session_ / "ground_truth.yaml", "x: [\n" + slurp(session_ / "ground_truth.yaml"));
+  expect_clean_failure(run(), "ground_truth.yaml", out_);
+}
+
 TEST_F(Mapper, NanInExtrinsicsIsAnError) {
   replace_regex_in_file(session_ / "true_calib/extrinsics_rgb.yaml", R"(translation: \[[-0-9.e]+,)",
                         "translation: [.nan,");
   expect_clean_failure(run(), "extrinsics_rgb.yaml", out_);
+}
+
+// A correct T_lidar_thermal (parent_frame: lidar) is the same calibration as the session's
+// T_thermal_lidar: the map's thermal error against the simulated truth stays what it is with
+// the original file (0.09 K mean). Used the wrong way round, the points sample the image a
+// quarter of a metre off and the mean error is kelvins.
+TEST_F(Mapper, ExtrinsicsWithTheLidarAsParentAreInverted) {
+  const fs::path file = session_ / "true_calib/extrinsics_thermal.yaml";
+  const rgbdt::core::Extrinsics thermal_lidar = rgbdt::core::read_extrinsics(file.string());
+  ASSERT_EQ(thermal_lidar.parent_frame, "thermal");
+  rgbdt::core::Extrinsics lidar_thermal = rgbdt::core::inverted(thermal_lidar);
+  ASSERT_EQ(lidar_thermal.parent_frame, "lidar");
+  write_bytes(file, rgbdt::core::format_extrinsics(lidar_thermal));
+  const auto r = run();
+  expect_success(r, out_);
+  const std::string summary = slurp(out_ / "summary.json");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(summary, m,
+                                std::regex(R"("thermal_error_k":\s*\{\s*"mean":\s*([-0-9.eE+]+))")))
+      << summary;
+  EXPECT_LT(std::stod(m[1].str()), 0.5) << "mean thermal error [K] with T_lidar_thermal";
+}
+
+TEST_F(Mapper, PointTimeThatIsNotFiniteIsAnError) {
+  patch_binary_point(session_ / "clouds/00002.pcd", 100, 18,
+                     f32(std::numeric_limits<float>::quiet_NaN()));
+  expect_clean_failure(run(), "00002.pcd", out_);
+}
+
+TEST_F(Mapper, PointTimeFarOutsideItsCloudIsAnError) {
+  patch_binary_point(session_ / "clouds/00002.pcd", 100, 18, f32(1e30f));
+  expect_clean_failure(run(), "00002.pcd", out_);
 }
 
 TEST_F(Mapper, HalfSizeThermalFramesAreAnError) {
@@ -507,36 +651,58 @@ class TiltLidar : public ::testing::Test {
   }
 };
 
+// The session's rawlog is gzip-compressed; the lengths and counts are in the serialised
+// records, so the forged words go into the uncompressed stream (a plain rawlog MRPT reads too).
 TEST_F(TiltLidar, RecordClaimingFourGigabytesIsRefused) {
   const fs::path dir = rgbdt::test::temp_dir("rawlog");
-  const std::string real = slurp(pristine("map") / "lidar.rawlog");
-  ASSERT_GT(real.size(), 64u);
-  // Every 32-bit little-endian word of the first record's first bytes that could be a length
-  // or a count becomes 0xFFFFFFF0, one candidate file each: whichever field the reader trusts,
-  // one of these claims ~4 GB.
-  for (std::size_t at = 0; at + 4 <= 48; at += 4) {
+  ASSERT_EQ(std::system(("gzip -dc " + (pristine("map") / "lidar.rawlog").string() + " > " +
+                         (dir / "plain.rawlog").string())
+                            .c_str()),
+            0);
+  const std::string real = slurp(dir / "plain.rawlog");
+  ASSERT_GT(real.size(), 4096u);
+  // The first record is a CObservation2DRangeScan of the simulated UTM-30LX: its count of
+  // 1081 ranges is the length MRPT's resizeScan allocates from (a segfault under a memory
+  // cap, 23 GB without one, before the rawlog reader bounded it).
+  const std::size_t count_at = real.find(u32(1081));
+  ASSERT_LT(count_at, 512u) << "no range count of 1081 in the first record";
+  std::vector<std::size_t> offsets = {count_at};
+  // And every aligned word of the first bytes, whichever field the reader trusts.
+  for (std::size_t at = 0; at + 4 <= 48; at += 4) offsets.push_back(at);
+  for (const std::size_t at : offsets) {
     std::string bytes = real;
     bytes.replace(at, 4, u32(0xFFFFFFF0u));
-    const fs::path p = dir / ("claim_" + std::to_string(at) + ".rawlog");
-    write_bytes(p, bytes);
-    const auto r = info(p);
-    SCOPED_TRACE("length word at byte " + std::to_string(at));
+    const std::string name = "claim_" + std::to_string(at) + ".rawlog";
+    write_bytes(dir / name, bytes);
+    const auto r = info(dir / name);
+    SCOPED_TRACE("word at byte " + std::to_string(at));
     EXPECT_FALSE(r.timed_out) << r.output;
     EXPECT_EQ(r.signal, 0) << "killed by signal " << r.signal << "\n" << r.output;
+    EXPECT_LT(r.peak_rss_mb, 1024) << r.output;
+    if (at == count_at) expect_clean_failure(r, name, dir / "none");
   }
 }
 
+// Three kinds of gzip file that hold no rawlog: a valid gzip stream of random bytes, a gzip
+// header followed by random bytes (a damaged stream), and a gzip stream of nothing.
 TEST_F(TiltLidar, GzipOfGarbageIsNotARawlog) {
   const fs::path dir = rgbdt::test::temp_dir("gz");
-  const fs::path raw = dir / "garbage.bin";
   std::mt19937 rng(11);
   std::string bytes(20000, '\0');
   for (auto& c : bytes) c = static_cast<char>(rng());
-  write_bytes(raw, bytes);
-  ASSERT_EQ(
-      std::system(("gzip -c " + raw.string() + " > " + (dir / "garbage.rawlog").string()).c_str()),
-      0);
-  expect_clean_failure(info(dir / "garbage.rawlog"), "garbage.rawlog", dir / "none");
+  write_bytes(dir / "garbage.bin", bytes);
+  write_bytes(dir / "empty.bin", "");
+  for (const char* name : {"garbage", "empty"}) {
+    const std::string in = (dir / (std::string(name) + ".bin")).string();
+    const std::string out = (dir / (std::string(name) + ".rawlog")).string();
+    ASSERT_EQ(std::system(("gzip -c " + in + " > " + out).c_str()), 0);
+  }
+  write_bytes(dir / "damaged.rawlog",
+              std::string("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03", 10) + bytes);
+  for (const char* name : {"garbage.rawlog", "damaged.rawlog", "empty.rawlog"}) {
+    SCOPED_TRACE(name);
+    expect_clean_failure(info(dir / name), name, dir / "none");
+  }
 }
 
 // rgbdt_import on bags that are not bags, or whose records lie about their lengths: exit 1
@@ -597,7 +763,8 @@ TEST_F(Import, RealMcapCutOrLyingAboutALengthIsRefused) {
     EXPECT_NE(r.exit_code, 0) << r.output;
     ++n;
   }
-  for (const std::size_t keep : {std::size_t{9}, std::size_t{40}, real.size() / 2, real.size() - 3}) {
+  for (const std::size_t keep :
+       {std::size_t{9}, std::size_t{40}, real.size() / 2, real.size() - 3}) {
     const std::string name = "cut_" + std::to_string(keep) + ".mcap";
     write_bytes(dir / name, real.substr(0, keep));
     expect_clean_failure(import(dir / name, dir / ("out_" + name)), name, dir / ("out_" + name));
