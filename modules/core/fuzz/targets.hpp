@@ -3,6 +3,9 @@
 // the gtest that replays the kept corpora. Each returns 1 when the reader accepted the
 // input and 0 when it refused it with rgbdt::core::Error or std::invalid_argument; any
 // other exception escapes (a finding), and a broken invariant of an accepted input aborts.
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -13,6 +16,7 @@
 #include "rgbdt/core/camera_info.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/image_header.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/core/tilt_rig.hpp"
 #include "rgbdt/core/time_index.hpp"
@@ -125,6 +129,32 @@ inline int mapping_session_input(const std::uint8_t* data, std::size_t size) {
     }
     return 1;
   });
+}
+
+// read_image_header reads from a path: the bytes go into an in-memory file (memfd) read
+// through /proc/self/fd.
+inline int image_header_input(const std::uint8_t* data, std::size_t size) {
+  const int fd = ::memfd_create("image_header_fuzz", 0);
+  if (fd < 0) std::abort();
+  std::size_t written = 0;
+  while (written < size) {
+    const ssize_t n = ::write(fd, data + written, size - written);
+    if (n <= 0) std::abort();
+    written += static_cast<std::size_t>(n);
+  }
+  const int accepted = refused_or([&] {
+    const ImageHeader h = read_image_header("/proc/self/fd/" + std::to_string(fd));
+    if (h.width < 1 || h.width > kMaxImageSide || h.height < 1 || h.height > kMaxImageSide) {
+      std::abort();
+    }
+    if (h.channels < 1 || h.channels > 4 || (h.format != "png" && h.format != "jpeg")) std::abort();
+    const std::uint64_t bytes = std::uint64_t(h.width) * std::uint64_t(h.height) *
+                                std::uint64_t(h.channels) * std::uint64_t(h.bit_depth > 8 ? 2 : 1);
+    if (bytes > kMaxImageBytes) std::abort();
+    return 1;
+  });
+  ::close(fd);
+  return accepted;
 }
 
 }  // namespace rgbdt::core::fuzz

@@ -78,5 +78,10 @@ TEST(FuzzCorpus, MappingSession) {
   }
 }
 
+TEST(FuzzCorpus, ImageHeader) {
+  replay("image_header", fuzz::image_header_input,
+         {"png_30000_square", "png_bad_crc", "png_bit_depth_3", "jpeg_no_sof", "empty"});
+}
+
 }  // namespace
 }  // namespace rgbdt::core
