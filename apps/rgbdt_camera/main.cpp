@@ -2,10 +2,10 @@
 // a FLIR Tau2 over its serial channel.
 #include <CLI/CLI.hpp>
 
-#include <cmath>
 #include <chrono>
-#include <filesystem>
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <sstream>

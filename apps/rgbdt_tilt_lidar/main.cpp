@@ -57,7 +57,8 @@ int record(const RecordArgs& a) {
     ini.getAllKeys(a.section, keys);
     for (const auto& k : keys) mem.write(a.section, k, ini.read_string(a.section, k, ""));
     tilt_lidar::EmulatedRigOptions eo;
-    eo.motor.table.counts_per_revolution = mem.read_double(a.section, "DXL_counts_per_rev", 501923.0);
+    eo.motor.table.counts_per_revolution =
+        mem.read_double(a.section, "DXL_counts_per_rev", 501923.0);
     emu = std::make_unique<tilt_lidar::EmulatedRig>(eo);
     mem.write(a.section, "IP_DIR", "127.0.0.1");
     mem.write(a.section, "PORT_DIR", emu->hokuyo_port());
@@ -69,7 +70,9 @@ int record(const RecordArgs& a) {
   } else {
     cfg = tilt_lidar::load_tilt_lidar_config(ini, a.section, a.config);
   }
-  const std::string rig_out = a.rig_out.empty() ? (fs::path(a.out).replace_extension(".tilt_rig.yaml")).string() : a.rig_out;
+  const std::string rig_out = a.rig_out.empty()
+                                  ? (fs::path(a.out).replace_extension(".tilt_rig.yaml")).string()
+                                  : a.rig_out;
   core::write_tilt_rig(rig_out, cfg.rig);
 
   tilt_lidar::RawlogWriterOptions wo;
@@ -90,14 +93,16 @@ int record(const RecordArgs& a) {
   bool outage_done = false, back_done = false;
   std::printf("recording to %s (rig: %s); Ctrl-C stops\n", a.out.c_str(), rig_out.c_str());
   while (!g_stop) {
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
     if (a.duration_s > 0 && elapsed >= a.duration_s) break;
     if (emu && a.kill_scanner_at_s >= 0 && !outage_done && elapsed >= a.kill_scanner_at_s) {
       std::printf("[emulation] scanner switched off\n");
       emu->hokuyo().stop();
       outage_done = true;
     }
-    if (emu && a.scanner_back_at_s >= 0 && outage_done && !back_done && elapsed >= a.scanner_back_at_s) {
+    if (emu && a.scanner_back_at_s >= 0 && outage_done && !back_done &&
+        elapsed >= a.scanner_back_at_s) {
       std::printf("[emulation] scanner switched on again\n");
       emu->hokuyo().start();
       back_done = true;
@@ -120,13 +125,15 @@ int record(const RecordArgs& a) {
     if (dt >= 1.0) {
       const auto s = sensor.stats();
       const auto& as = assembler.stats();
-      std::printf("t=%6.1fs  scans/s %5.1f  encoder/s %6.1f  tilts/s %4.2f  | dropped: scans %lld, encoder reads %lld, "
-                  "beams %lld | scanner %s, motor %s\n",
-                  std::chrono::duration<double>(now - t_start).count(), (s.scans - last.scans) / dt,
-                  (s.encoder_samples - last.encoder_samples) / dt, (tilts - last_tilts) / dt,
-                  static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_failures),
-                  static_cast<long long>(as.dropped_gap + as.dropped_no_encoder), s.scanner_ok ? "ok" : "LOST",
-                  s.motor_ok ? "ok" : "LOST");
+      std::printf(
+          "t=%6.1fs  scans/s %5.1f  encoder/s %6.1f  tilts/s %4.2f  | dropped: scans %lld, encoder "
+          "reads %lld, "
+          "beams %lld | scanner %s, motor %s\n",
+          std::chrono::duration<double>(now - t_start).count(), (s.scans - last.scans) / dt,
+          (s.encoder_samples - last.encoder_samples) / dt, (tilts - last_tilts) / dt,
+          static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_failures),
+          static_cast<long long>(as.dropped_gap + as.dropped_no_encoder),
+          s.scanner_ok ? "ok" : "LOST", s.motor_ok ? "ok" : "LOST");
       std::fflush(stdout);
       last = s;
       last_tilts = tilts;
@@ -136,15 +143,18 @@ int record(const RecordArgs& a) {
   }
   sensor.stop();
   for (const auto& [stamp, obj] : sensor.getObservations()) {
-    if (const auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj)) writer.write(*obs);
+    if (const auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
+      writer.write(*obs);
   }
   writer.close();
   const auto s = sensor.stats();
-  std::printf("recorded %lld records: %lld scans (%lld missed), %lld encoder samples (%lld failed reads), "
-              "scanner lost %lld times -> %s\n",
-              static_cast<long long>(writer.records()), static_cast<long long>(s.scans),
-              static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_samples),
-              static_cast<long long>(s.encoder_failures), static_cast<long long>(s.scanner_losses), a.out.c_str());
+  std::printf(
+      "recorded %lld records: %lld scans (%lld missed), %lld encoder samples (%lld failed reads), "
+      "scanner lost %lld times -> %s\n",
+      static_cast<long long>(writer.records()), static_cast<long long>(s.scans),
+      static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_samples),
+      static_cast<long long>(s.encoder_failures), static_cast<long long>(s.scanner_losses),
+      a.out.c_str());
   return s.scans > 0 && s.encoder_samples > 0 ? 0 : 1;
 }
 
@@ -171,8 +181,9 @@ std::string find_rig(const AssembleArgs& a) {
       return p.string();
     }
   }
-  throw core::Error(a.rawlog, "no --rig given and neither " + stem_rig.string() + " (written by `record`) nor " +
-                                  dir_rig.string() + " (written by `rgbdt_sim mapping`) exists; pass --rig FILE");
+  throw core::Error(a.rawlog, "no --rig given and neither " + stem_rig.string() +
+                                  " (written by `record`) nor " + dir_rig.string() +
+                                  " (written by `rgbdt_sim mapping`) exists; pass --rig FILE");
 }
 
 int assemble(const AssembleArgs& a) {
@@ -216,42 +227,52 @@ int assemble(const AssembleArgs& a) {
         cloud::save_pcd(out.temp_path(), *t.cloud);
         out.commit();
         index.push_back({t.start_time_s, file.string()});
-        std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1, name,
-                    t.cloud->size(), t.stats.scans, t.start_time_s, t.end_time_s, t.direction > 0 ? "up" : "down");
+        std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1,
+                    name, t.cloud->size(), t.stats.scans, t.start_time_s, t.end_time_s,
+                    t.direction > 0 ? "up" : "down");
         std::fflush(stdout);
-        if (interrupt_after > 0 && static_cast<long>(index.size()) == interrupt_after) std::raise(SIGINT);
+        if (interrupt_after > 0 && static_cast<long>(index.size()) == interrupt_after)
+          std::raise(SIGINT);
       },
       {}, [] { return core::interrupted(); });
   // Rows name the clouds relative to the index's folder (they all live in it).
   std::ostringstream csv;
   csv << "time_s,file\n" << std::setprecision(15);
-  for (const auto& e : index) csv << e.time_s << ',' << fs::path(e.file).filename().string() << '\n';
+  for (const auto& e : index)
+    csv << e.time_s << ',' << fs::path(e.file).filename().string() << '\n';
   core::write_file_atomic(index_path.string(), csv.str());
   const auto& s = assembler.stats();
-  std::printf("%lld scans, %lld encoder samples -> %zu tilts in %s (%lld partial skipped)\n"
-              "points %lld, invalid %lld (%lld NaN/negative ranges refused), dropped in encoder gaps %lld, "
-              "without encoder %lld, duplicates %lld/%lld, late %lld/%lld\n",
-              static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples), index.size(),
-              index_path.c_str(), static_cast<long long>(skipped), static_cast<long long>(s.points),
-              static_cast<long long>(s.invalid), static_cast<long long>(r.beams_refused),
-              static_cast<long long>(s.dropped_gap), static_cast<long long>(s.dropped_no_encoder),
-              static_cast<long long>(s.scans_duplicate), static_cast<long long>(s.encoder_duplicate),
-              static_cast<long long>(s.scans_late), static_cast<long long>(s.encoder_late));
+  std::printf(
+      "%lld scans, %lld encoder samples -> %zu tilts in %s (%lld partial skipped)\n"
+      "points %lld, invalid %lld (%lld NaN/negative ranges refused), dropped in encoder gaps %lld, "
+      "without encoder %lld, duplicates %lld/%lld, late %lld/%lld\n",
+      static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples), index.size(),
+      index_path.c_str(), static_cast<long long>(skipped), static_cast<long long>(s.points),
+      static_cast<long long>(s.invalid), static_cast<long long>(r.beams_refused),
+      static_cast<long long>(s.dropped_gap), static_cast<long long>(s.dropped_no_encoder),
+      static_cast<long long>(s.scans_duplicate), static_cast<long long>(s.encoder_duplicate),
+      static_cast<long long>(s.scans_late), static_cast<long long>(s.encoder_late));
   if (r.interrupted) {
-    std::fprintf(stderr,
-                 "interrupted: %zu complete tilt clouds are written and listed in %s; the rest of %s was "
-                 "not assembled\n",
-                 index.size(), index_path.c_str(), a.rawlog.c_str());
+    std::fprintf(
+        stderr,
+        "interrupted: %zu complete tilt clouds are written and listed in %s; the rest of %s was "
+        "not assembled\n",
+        index.size(), index_path.c_str(), a.rawlog.c_str());
     return 130;
   }
   if (r.truncated) {
-    std::fprintf(stderr, "error: %s\n(the %zu tilts before the damaged record were written and indexed in %s)\n",
-                 r.error.c_str(), index.size(), index_path.c_str());
+    std::fprintf(
+        stderr,
+        "error: %s\n(the %zu tilts before the damaged record were written and indexed in %s)\n",
+        r.error.c_str(), index.size(), index_path.c_str());
     return 2;
   }
   if (index.empty()) {
-    std::fprintf(stderr, "error: %s: no complete tilt could be assembled (%lld scans, %lld encoder samples)\n",
-                 a.rawlog.c_str(), static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples));
+    std::fprintf(
+        stderr,
+        "error: %s: no complete tilt could be assembled (%lld scans, %lld encoder samples)\n",
+        a.rawlog.c_str(), static_cast<long long>(r.scans),
+        static_cast<long long>(r.encoder_samples));
     return 1;
   }
   return 0;
@@ -260,12 +281,13 @@ int assemble(const AssembleArgs& a) {
 int info(const std::string& rawlog) {
   const auto s = tilt_lidar::summarize_rawlog(rawlog);
   std::printf("%s: %lld observations\n", rawlog.c_str(), static_cast<long long>(s.observations));
-  std::printf("%-16s %-40s %8s %18s %18s %9s\n", "label", "class", "count", "first [s]", "last [s]", "rate [Hz]");
+  std::printf("%-16s %-40s %8s %18s %18s %9s\n", "label", "class", "count", "first [s]", "last [s]",
+              "rate [Hz]");
   for (const auto& [label, st] : s.streams) {
     const double span = st.last_time_s - st.first_time_s;
     std::printf("%-16s %-40s %8lld %18.6f %18.6f %9.2f\n", label.empty() ? "(none)" : label.c_str(),
-                st.class_name.c_str(), static_cast<long long>(st.count), st.first_time_s, st.last_time_s,
-                span > 0 ? (st.count - 1) / span : 0.0);
+                st.class_name.c_str(), static_cast<long long>(st.count), st.first_time_s,
+                st.last_time_s, span > 0 ? (st.count - 1) / span : 0.0);
   }
   if (s.truncated) {
     std::fprintf(stderr, "error: %s\n", s.error.c_str());
@@ -279,7 +301,8 @@ int info(const std::string& rawlog) {
 int main(int argc, char** argv) {
   CLI::App app{
       "rgbdt_tilt_lidar: tilting-LIDAR recorder and assembler.\n"
-      "  record    drive the scanner (MRPT CHokuyoURG) and the Dynamixel tilt motor, write the raw\n"
+      "  record    drive the scanner (MRPT CHokuyoURG) and the Dynamixel tilt motor, write the "
+      "raw\n"
       "            stream (HOKUYO scans + TILT_ENCODER samples) to an MRPT rawlog\n"
       "  assemble  turn a raw rawlog into one PCD per tilt plus clouds/index.csv\n"
       "  info      list the streams of a rawlog (any MRPT rawlog)"};
@@ -289,28 +312,44 @@ int main(int argc, char** argv) {
 
   RecordArgs ra;
   auto* rec = app.add_subcommand("record", "record the raw stream to an MRPT rawlog");
-  rec->add_option("--config", ra.config, "rawlog-grabber style INI (keys: see tilt_lidar_sensor.hpp)")->required();
-  rec->add_option("--section", ra.section, "INI section of the tilting LIDAR")->capture_default_str();
+  rec->add_option("--config", ra.config,
+                  "rawlog-grabber style INI (keys: see tilt_lidar_sensor.hpp)")
+      ->required();
+  rec->add_option("--section", ra.section, "INI section of the tilting LIDAR")
+      ->capture_default_str();
   rec->add_option("--out", ra.out, "output rawlog")->required();
   rec->add_option("--rig-out", ra.rig_out, "tilt_rig.yaml to write (default: <out>.tilt_rig.yaml)");
-  rec->add_option("--duration", ra.duration_s, "stop after this many seconds (default: until Ctrl-C)");
-  rec->add_flag("--emulate", ra.emulate, "use an emulated UTM-30LX and Dynamixel PRO (no hardware)");
-  rec->add_option("--emulate-outage", ra.kill_scanner_at_s, "with --emulate: switch the scanner off at this second");
-  rec->add_option("--emulate-return", ra.scanner_back_at_s, "with --emulate: switch it on again at this second");
+  rec->add_option("--duration", ra.duration_s,
+                  "stop after this many seconds (default: until Ctrl-C)");
+  rec->add_flag("--emulate", ra.emulate,
+                "use an emulated UTM-30LX and Dynamixel PRO (no hardware)");
+  rec->add_option("--emulate-outage", ra.kill_scanner_at_s,
+                  "with --emulate: switch the scanner off at this second");
+  rec->add_option("--emulate-return", ra.scanner_back_at_s,
+                  "with --emulate: switch it on again at this second");
 
   AssembleArgs aa;
   auto* asmb = app.add_subcommand("assemble", "assemble a raw rawlog into one PCD per tilt");
   asmb->add_option("rawlog", aa.rawlog, "input rawlog")->required()->check(CLI::ExistingFile);
-  asmb->add_option("--rig", aa.rig,
-                   "tilt_rig.yaml (frames, beam timing, encoder); default: <rawlog stem>.tilt_rig.yaml "
-                   "(written by `record`), else tilt_rig.yaml (written by `rgbdt_sim mapping`) beside the rawlog")
+  asmb->add_option(
+          "--rig", aa.rig,
+          "tilt_rig.yaml (frames, beam timing, encoder); default: <rawlog stem>.tilt_rig.yaml "
+          "(written by `record`), else tilt_rig.yaml (written by `rgbdt_sim mapping`) beside the "
+          "rawlog")
       ->check(CLI::ExistingFile);
-  asmb->add_option("--out", aa.out, "output folder (clouds/NNNNNN.pcd, clouds/index.csv)")->required();
-  asmb->add_option("--max-gap", aa.options.max_encoder_gap_s, "longest encoder gap to interpolate across [s]")->capture_default_str();
-  asmb->add_option("--encoder-offset", aa.options.encoder_time_offset_s, "encoder clock -> scanner clock offset [s]")->capture_default_str();
-  asmb->add_option("--hysteresis-deg", aa.options.reversal_hysteresis_rad, "reversal detection hysteresis [deg]")
+  asmb->add_option("--out", aa.out, "output folder (clouds/NNNNNN.pcd, clouds/index.csv)")
+      ->required();
+  asmb->add_option("--max-gap", aa.options.max_encoder_gap_s,
+                   "longest encoder gap to interpolate across [s]")
+      ->capture_default_str();
+  asmb->add_option("--encoder-offset", aa.options.encoder_time_offset_s,
+                   "encoder clock -> scanner clock offset [s]")
+      ->capture_default_str();
+  asmb->add_option("--hysteresis-deg", aa.options.reversal_hysteresis_rad,
+                   "reversal detection hysteresis [deg]")
       ->transform([](std::string s) { return std::to_string(std::stod(s) * M_PI / 180.0); });
-  asmb->add_flag("--keep-partial", aa.keep_partial, "also write the incomplete first and last tilts");
+  asmb->add_flag("--keep-partial", aa.keep_partial,
+                 "also write the incomplete first and last tilts");
 
   std::string info_path;
   auto* inf = app.add_subcommand("info", "summarise a rawlog");

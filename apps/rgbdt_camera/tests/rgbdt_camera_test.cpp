@@ -15,9 +15,9 @@
 #include <thread>
 
 #include "rgbdt/core/time_index.hpp"
-#include "rgbdt/thermal_camera/tau2.hpp"
 #include "rgbdt/test/process.hpp"
 #include "rgbdt/test/test_util.hpp"
+#include "rgbdt/thermal_camera/tau2.hpp"
 
 extern char** environ;
 namespace fs = std::filesystem;
@@ -203,8 +203,8 @@ TEST(RgbdtCamera, BadRecordArgumentsAreRefusedNamingTheValue) {
   };
   int k = 0;
   for (const Case& c : cases) {
-    std::vector<std::string> args = {"record", "--interfaces", "fake", "--id", "Fake_1",
-                                     "--out", out.string(), "--frames", "3"};
+    std::vector<std::string> args = {"record", "--interfaces", "fake",     "--id", "Fake_1",
+                                     "--out",  out.string(),   "--frames", "3"};
     args.insert(args.end(), c.args.begin(), c.args.end());
     const fs::path log = dir / ("log" + std::to_string(k++));
     EXPECT_EQ(run(args, log), 1) << c.expected << ": " << slurp(log);
@@ -213,7 +213,10 @@ TEST(RgbdtCamera, BadRecordArgumentsAreRefusedNamingTheValue) {
   }
   {
     const fs::path log = dir / ("log" + std::to_string(k++));
-    EXPECT_EQ(run({"record", "--interfaces", "gige,serial", "--id", "Fake_1", "--out", out.string()}, log), 1)
+    EXPECT_EQ(
+        run({"record", "--interfaces", "gige,serial", "--id", "Fake_1", "--out", out.string()},
+            log),
+        1)
         << slurp(log);
     EXPECT_NE(slurp(log).find("'serial'"), std::string::npos) << slurp(log);
     EXPECT_FALSE(fs::exists(out));
