@@ -15,7 +15,7 @@ function(run_step name)
   set(${name}_rc "${rc}" PARENT_SCOPE)
 endfunction()
 
-run_step(record "${APP}" record --config "${RIG_INI}" --out "${WORK}/s.rawlog" --emulate --duration 3)
+run_step(record "${APP}" record --ini "${RIG_INI}" --out "${WORK}/s.rawlog" --emulate --duration 3)
 if(NOT record_rc EQUAL 0)
   message(FATAL_ERROR "record failed (${record_rc}):\n${record_out}\n${record_err}")
 endif()
@@ -32,6 +32,20 @@ endif()
 if(NOT EXISTS "${WORK}/s.tilt_rig.yaml")
   message(FATAL_ERROR "record did not write s.tilt_rig.yaml beside the rawlog")
 endif()
+
+# The INI given to --config (where `record` took it before --config became the app's YAML
+# option file), before or after the command: an error that says the INI goes to --ini.
+foreach(order IN ITEMS before after)
+  if(order STREQUAL before)
+    run_step(old "${APP}" --config "${RIG_INI}" record --out "${WORK}/old.rawlog" --emulate --duration 1)
+  else()
+    run_step(old "${APP}" record --config "${RIG_INI}" --out "${WORK}/old.rawlog" --emulate --duration 1)
+  endif()
+  if(old_rc EQUAL 0 OR NOT old_err MATCHES "looks like an INI file \\(line [0-9]+: \\[TILT_LIDAR\\]\\).*`record --ini FILE`"
+     OR EXISTS "${WORK}/old.rawlog")
+    message(FATAL_ERROR "--config rig.ini (${order} record) should fail pointing to record --ini (${old_rc}):\n${old_out}\n${old_err}")
+  endif()
+endforeach()
 
 run_step(info "${APP}" info "${WORK}/s.rawlog")
 if(NOT info_rc EQUAL 0 OR NOT info_out MATCHES "HOKUYO +mrpt::obs::CObservation2DRangeScan +${scans} ")

@@ -18,6 +18,7 @@
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/core/Clock.h>
 
+#include "app_config.hpp"
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/interrupt.hpp"
@@ -39,15 +40,15 @@ std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
 struct RecordArgs {
-  std::string config, section = "TILT_LIDAR", out, rig_out;
+  std::string ini, section = "TILT_LIDAR", out, rig_out;
   double duration_s = 0;
   bool emulate = false;
   int kill_scanner_at_s = -1, scanner_back_at_s = -1;  // emulated outage, for demos/tests
 };
 
 int record(const RecordArgs& a) {
-  if (!fs::exists(a.config)) throw core::Error(a.config, "config file does not exist");
-  mrpt::config::CConfigFile ini(a.config);
+  if (!fs::exists(a.ini)) throw core::Error(a.ini, "INI file does not exist");
+  mrpt::config::CConfigFile ini(a.ini);
   tilt_lidar::TiltLidarConfig cfg;
   std::unique_ptr<tilt_lidar::EmulatedRig> emu;
   if (a.emulate) {
@@ -64,11 +65,11 @@ int record(const RecordArgs& a) {
     mem.write(a.section, "PORT_DIR", emu->hokuyo_port());
     mem.write(a.section, "COM_port_LIN", "");
     mem.write(a.section, "DXL_port", emu->motor_device());
-    cfg = tilt_lidar::load_tilt_lidar_config(mem, a.section, a.config);
+    cfg = tilt_lidar::load_tilt_lidar_config(mem, a.section, a.ini);
     std::printf("emulating: UTM-30LX on 127.0.0.1:%d, Dynamixel PRO on %s\n", emu->hokuyo_port(),
                 emu->motor_device().c_str());
   } else {
-    cfg = tilt_lidar::load_tilt_lidar_config(ini, a.section, a.config);
+    cfg = tilt_lidar::load_tilt_lidar_config(ini, a.section, a.ini);
   }
   const std::string rig_out = a.rig_out.empty()
                                   ? (fs::path(a.out).replace_extension(".tilt_rig.yaml")).string()
@@ -306,14 +307,18 @@ int main(int argc, char** argv) {
       "            stream (HOKUYO scans + TILT_ENCODER samples) to an MRPT rawlog\n"
       "  assemble  turn a raw rawlog into one PCD per tilt plus clouds/index.csv\n"
       "  info      list the streams of a rawlog (any MRPT rawlog)"};
+  apps::add_config_option(app, argc, argv,
+                          "the MRPT rawlog-grabber INI of the rig is given with `record --ini "
+                          "FILE` (formerly `record --config`)");
   app.require_subcommand(1);
+  app.fallthrough();  // global options may also follow the command (`record --config F`)
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "show library log messages (debug level)");
 
   RecordArgs ra;
   auto* rec = app.add_subcommand("record", "record the raw stream to an MRPT rawlog");
-  rec->add_option("--config", ra.config,
-                  "rawlog-grabber style INI (keys: see tilt_lidar_sensor.hpp)")
+  rec->add_option("--ini", ra.ini,
+                  "MRPT rawlog-grabber INI of the rig (keys: see tilt_lidar_sensor.hpp)")
       ->required();
   rec->add_option("--section", ra.section, "INI section of the tilting LIDAR")
       ->capture_default_str();
@@ -345,9 +350,9 @@ int main(int argc, char** argv) {
   asmb->add_option("--encoder-offset", aa.options.encoder_time_offset_s,
                    "encoder clock -> scanner clock offset [s]")
       ->capture_default_str();
-  asmb->add_option("--hysteresis-deg", aa.options.reversal_hysteresis_rad,
-                   "reversal detection hysteresis [deg]")
-      ->transform([](std::string s) { return std::to_string(std::stod(s) * M_PI / 180.0); });
+  double hysteresis_deg = aa.options.reversal_hysteresis_rad * 180.0 / M_PI;
+  asmb->add_option("--hysteresis-deg", hysteresis_deg, "reversal detection hysteresis [deg]")
+      ->check(CLI::PositiveNumber);
   asmb->add_flag("--keep-partial", aa.keep_partial,
                  "also write the incomplete first and last tilts");
 
@@ -361,6 +366,7 @@ int main(int argc, char** argv) {
   try {
     if (*rec) return record(ra);
     if (*asmb) {
+      aa.options.reversal_hysteresis_rad = hysteresis_deg * M_PI / 180.0;
       if (const auto why = aa.options.validate(); !why.empty()) throw std::invalid_argument(why);
       return assemble(aa);
     }
