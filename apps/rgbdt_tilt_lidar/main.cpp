@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -39,38 +40,182 @@ namespace {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
+/// A rig option of `record`: it writes one key of the INI section that the driver reads
+/// (tilt_lidar_sensor.hpp), over the --ini file's value of that key. Values are kept as the
+/// text given (checked as numbers by CLI11) so that an option not given stays empty: it leaves
+/// the key to the INI and shows as `~` in the effective configuration.
+struct RigOption {
+  enum class Kind { kText, kInteger, kNumber, kPositive };
+  enum class Need {
+    kWithoutIni,         ///< required when there is no --ini
+    kDeviceWithoutIni,   ///< required when there is no --ini, except with --emulate
+    kScannerWithoutIni,  ///< one of the two scanner addresses, as kDeviceWithoutIni
+    kNever,              ///< its default fits any rig: SCIP's port, the encoder rate
+  };
+  const char* name;
+  const char* ini_key;
+  const char* help;  ///< with the unit
+  Kind kind;
+  Need need;
+};
+
+using Kind = RigOption::Kind;
+using Need = RigOption::Need;
+const RigOption kRigOptions[] = {
+    {"--scanner-ip", "IP_DIR", "Ethernet scanner's IPv4 address (UTM-30LX: 192.168.0.10)",
+     Kind::kText, Need::kScannerWithoutIni},
+    {"--scanner-port", "PORT_DIR", "its TCP port (default 10940, SCIP's)", Kind::kInteger,
+     Need::kNever},
+    {"--scanner-serial", "COM_port_LIN",
+     "USB scanner's serial device, e.g. ttyACM0 (instead of --scanner-ip)", Kind::kText,
+     Need::kScannerWithoutIni},
+    {"--dxl-port", "DXL_port", "serial device of the Dynamixel bus, e.g. /dev/ttyUSB0", Kind::kText,
+     Need::kDeviceWithoutIni},
+    {"--dxl-baud", "DXL_baud", "the bus's baud rate [bit/s]", Kind::kInteger, Need::kWithoutIni},
+    {"--dxl-id", "DXL_id", "the tilt motor's Dynamixel id (0..252)", Kind::kInteger,
+     Need::kWithoutIni},
+    {"--dxl-counts-per-rev", "DXL_counts_per_rev",
+     "motor encoder counts per output revolution [counts/rev] (H54-200-S500-R: 501923)",
+     Kind::kPositive, Need::kWithoutIni},
+    {"--tilt-min-deg", "tilt_min_deg", "lower tilt limit [deg]", Kind::kNumber, Need::kWithoutIni},
+    {"--tilt-max-deg", "tilt_max_deg", "upper tilt limit [deg]", Kind::kNumber, Need::kWithoutIni},
+    {"--tilt-speed-deg-s", "tilt_speed_deg_s", "tilt speed [deg/s]", Kind::kPositive,
+     Need::kWithoutIni},
+    {"--encoder-rate-hz", "encoder_rate_hz", "encoder sampling rate [Hz] (default 200)",
+     Kind::kPositive, Need::kNever},
+    {"--mount-x", "mount_x", "scanner on the tilt axis (T_axis_scanner): x [m]", Kind::kNumber,
+     Need::kWithoutIni},
+    {"--mount-y", "mount_y", "T_axis_scanner: y [m]", Kind::kNumber, Need::kWithoutIni},
+    {"--mount-z", "mount_z", "T_axis_scanner: z [m]", Kind::kNumber, Need::kWithoutIni},
+    {"--mount-roll-deg", "mount_roll_deg", "T_axis_scanner: roll [deg]", Kind::kNumber,
+     Need::kWithoutIni},
+    {"--mount-pitch-deg", "mount_pitch_deg", "T_axis_scanner: pitch [deg]", Kind::kNumber,
+     Need::kWithoutIni},
+    {"--mount-yaw-deg", "mount_yaw_deg", "T_axis_scanner: yaw [deg]", Kind::kNumber,
+     Need::kWithoutIni},
+};
+constexpr std::size_t kRigOptionCount = std::size(kRigOptions);
+
 struct RecordArgs {
   std::string ini, section = "TILT_LIDAR", out, rig_out;
+  std::array<std::string, kRigOptionCount> rig;  ///< by kRigOptions' index; empty: not given
+  std::string config;                            ///< the app's --config, to name it in messages
   double duration_s = 0;
   bool emulate = false;
   int kill_scanner_at_s = -1, scanner_back_at_s = -1;  // emulated outage, for demos/tests
 };
 
-int record(const RecordArgs& a) {
-  if (!fs::exists(a.ini)) throw core::Error(a.ini, "INI file does not exist");
-  mrpt::config::CConfigFile ini(a.ini);
-  tilt_lidar::TiltLidarConfig cfg;
-  std::unique_ptr<tilt_lidar::EmulatedRig> emu;
-  if (a.emulate) {
-    // Devices emulated in-process; the INI still gives geometry, limits and speeds.
-    mrpt::config::CConfigFileMemory mem;
+void add_rig_options(CLI::App& rec, RecordArgs& a) {
+  const std::string group =
+      "Rig (each sets the INI key named, over --ini's; without --ini all are required but "
+      "--scanner-port and --encoder-rate-hz, and --emulate supplies the devices' addresses)";
+  for (std::size_t i = 0; i < kRigOptionCount; ++i) {
+    const RigOption& o = kRigOptions[i];
+    CLI::Option* op =
+        rec.add_option(o.name, a.rig[i], std::string(o.help) + " (INI: " + o.ini_key + ")");
+    op->group(group);
+    // The value stays text (see RigOption); the checks make it a number, under the number's
+    // name in the help.
+    if (o.kind == Kind::kInteger) {
+      op->type_name("INT")->check(CLI::Validator(CLI::TypeValidator<int>()).description(""));
+    }
+    if (o.kind == Kind::kNumber)
+      op->type_name("FLOAT")->check(CLI::Validator(CLI::Number).description(""));
+    if (o.kind == Kind::kPositive) op->type_name("FLOAT")->check(CLI::PositiveNumber);
+  }
+  rec.get_option("--scanner-ip")->excludes("--scanner-serial");
+  rec.get_option("--scanner-port")->excludes("--scanner-serial");
+  rec.get_option("--scanner-port")->check(CLI::Range(1, 65535));
+  rec.get_option("--dxl-baud")->check(CLI::PositiveNumber);
+  rec.get_option("--dxl-id")->check(CLI::Range(0, 252));
+}
+
+/// The rig options that are required and missing: none with --ini (the INI or the driver's
+/// defaults give what is not given), else every one a rig cannot do without, so that no value
+/// of the paper's rig is taken for another's; the emulator supplies the devices' addresses.
+std::vector<std::string> missing_rig_options(const RecordArgs& a) {
+  std::vector<std::string> missing;
+  if (!a.ini.empty()) return missing;
+  bool scanner_given = false;
+  for (std::size_t i = 0; i < kRigOptionCount; ++i) {
+    const RigOption& o = kRigOptions[i];
+    if (o.need == Need::kScannerWithoutIni) scanner_given = scanner_given || !a.rig[i].empty();
+    const bool needed =
+        o.need == Need::kWithoutIni || (o.need == Need::kDeviceWithoutIni && !a.emulate);
+    if (needed && a.rig[i].empty()) missing.push_back(o.name);
+  }
+  if (!scanner_given && !a.emulate)
+    missing.insert(missing.begin(), "--scanner-ip or --scanner-serial");
+  return missing;
+}
+
+/// What the driver's configuration comes from, for its messages.
+std::string rig_source(const RecordArgs& a) {
+  const bool options = std::any_of(a.rig.begin(), a.rig.end(), [](auto& v) { return !v.empty(); });
+  if (!options) return a.ini;
+  const std::string opts =
+      "record's rig options" + (a.config.empty() ? std::string() : " (and " + a.config + ")");
+  return a.ini.empty() ? opts : a.ini + " with " + opts;
+}
+
+/// The INI section the driver's loadConfig reads (TiltLidarSensor, through
+/// load_tilt_lidar_config): the --ini file's keys, then each rig option given over its key.
+mrpt::config::CConfigFileMemory rig_section(const RecordArgs& a) {
+  mrpt::config::CConfigFileMemory mem;
+  if (!a.ini.empty()) {
+    if (!fs::exists(a.ini)) throw core::Error(a.ini, "INI file does not exist");
+    const mrpt::config::CConfigFile ini(a.ini);
+    if (!ini.sectionExists(a.section)) {
+      throw core::Error(a.ini, "has no section [" + a.section + "] (--section)");
+    }
     std::vector<std::string> keys;
     ini.getAllKeys(a.section, keys);
     for (const auto& k : keys) mem.write(a.section, k, ini.read_string(a.section, k, ""));
-    tilt_lidar::EmulatedRigOptions eo;
-    eo.motor.table.counts_per_revolution =
-        mem.read_double(a.section, "DXL_counts_per_rev", 501923.0);
-    emu = std::make_unique<tilt_lidar::EmulatedRig>(eo);
-    mem.write(a.section, "IP_DIR", "127.0.0.1");
-    mem.write(a.section, "PORT_DIR", emu->hokuyo_port());
-    mem.write(a.section, "COM_port_LIN", "");
-    mem.write(a.section, "DXL_port", emu->motor_device());
-    cfg = tilt_lidar::load_tilt_lidar_config(mem, a.section, a.ini);
-    std::printf("emulating: UTM-30LX on 127.0.0.1:%d, Dynamixel PRO on %s\n", emu->hokuyo_port(),
-                emu->motor_device().c_str());
-  } else {
-    cfg = tilt_lidar::load_tilt_lidar_config(ini, a.section, a.ini);
   }
+  for (std::size_t i = 0; i < kRigOptionCount; ++i) {
+    if (a.rig[i].empty()) continue;
+    const std::string key = kRigOptions[i].ini_key;
+    mem.write(a.section, key, a.rig[i]);
+    // The scanner is on one address: the one given replaces the INI's other.
+    if (key == "IP_DIR") mem.write(a.section, "COM_port_LIN", "");
+    if (key == "COM_port_LIN") mem.write(a.section, "IP_DIR", "");
+  }
+  return mem;
+}
+
+/// Starts an emulated UTM-30LX and Dynamixel PRO in-process and points the driver's section at
+/// them; the INI and the options still give the motor, geometry, limits and speeds.
+std::unique_ptr<tilt_lidar::EmulatedRig> start_emulated_rig(mrpt::config::CConfigFileMemory& mem,
+                                                            const std::string& section) {
+  tilt_lidar::EmulatedRigOptions eo;
+  eo.motor.table.counts_per_revolution =
+      mem.read_double(section, "DXL_counts_per_rev", eo.motor.table.counts_per_revolution);
+  eo.motor.id = static_cast<std::uint8_t>(std::clamp(mem.read_int(section, "DXL_id", 1), 0, 252));
+  auto emu = std::make_unique<tilt_lidar::EmulatedRig>(eo);
+  mem.write(section, "IP_DIR", "127.0.0.1");
+  mem.write(section, "PORT_DIR", emu->hokuyo_port());
+  mem.write(section, "COM_port_LIN", "");
+  mem.write(section, "DXL_port", emu->motor_device());
+  std::printf("emulating: UTM-30LX on 127.0.0.1:%d, Dynamixel PRO on %s\n", emu->hokuyo_port(),
+              emu->motor_device().c_str());
+  return emu;
+}
+
+int record(const RecordArgs& a) {
+  if (const auto missing = missing_rig_options(a); !missing.empty()) {
+    std::string list;
+    for (const auto& m : missing) list += (list.empty() ? "" : ", ") + m;
+    throw std::invalid_argument(
+        "record: without --ini the rig is described by options, and these are missing: " + list +
+        " (on the command line or in a --config YAML such as config/tilt_lidar_paper_rig.yaml), "
+        "or give --ini FILE");
+  }
+  mrpt::config::CConfigFileMemory mem = rig_section(a);
+  const std::string source = rig_source(a);
+  std::unique_ptr<tilt_lidar::EmulatedRig> emu;
+  if (a.emulate) emu = start_emulated_rig(mem, a.section);
+  const tilt_lidar::TiltLidarConfig cfg =
+      tilt_lidar::load_tilt_lidar_config(mem, a.section, source);
   const std::string rig_out = a.rig_out.empty()
                                   ? (fs::path(a.out).replace_extension(".tilt_rig.yaml")).string()
                                   : a.rig_out;
@@ -318,8 +463,8 @@ int main(int argc, char** argv) {
   RecordArgs ra;
   auto* rec = app.add_subcommand("record", "record the raw stream to an MRPT rawlog");
   rec->add_option("--ini", ra.ini,
-                  "MRPT rawlog-grabber INI of the rig (keys: see tilt_lidar_sensor.hpp)")
-      ->required();
+                  "MRPT rawlog-grabber INI of the rig (keys: see tilt_lidar_sensor.hpp); the rig "
+                  "options below override its keys");
   rec->add_option("--section", ra.section, "INI section of the tilting LIDAR")
       ->capture_default_str();
   rec->add_option("--out", ra.out, "output rawlog")->required();
@@ -332,6 +477,7 @@ int main(int argc, char** argv) {
                   "with --emulate: switch the scanner off at this second");
   rec->add_option("--emulate-return", ra.scanner_back_at_s,
                   "with --emulate: switch it on again at this second");
+  add_rig_options(*rec, ra);
 
   AssembleArgs aa;
   auto* asmb = app.add_subcommand("assemble", "assemble a raw rawlog into one PCD per tilt");
@@ -364,7 +510,10 @@ int main(int argc, char** argv) {
   core::set_log_sink(core::stderr_log_sink);
   core::set_log_level(verbose ? core::LogLevel::kDebug : core::LogLevel::kWarning);
   try {
-    if (*rec) return record(ra);
+    if (*rec) {
+      if (app.get_config_ptr()->count() > 0) ra.config = app.get_config_ptr()->as<std::string>();
+      return record(ra);
+    }
     if (*asmb) {
       aa.options.reversal_hysteresis_rad = hysteresis_deg * M_PI / 180.0;
       if (const auto why = aa.options.validate(); !why.empty()) throw std::invalid_argument(why);
