@@ -1,10 +1,12 @@
 # End-to-end check of the app as a user runs it (ctest -P script):
-#   record 3 s from the emulated rig -> info -> assemble (rig found beside the rawlog), an
-#   option over the INI's key, the INI given to --config, missing rig options, relative --out
-#   from another directory, Ctrl-C, gzip garbage, both rig file names
+#   record 3 s from the emulated rig (from rig.ini, and from the YAML option file without an
+#   INI) -> info -> assemble (rig found beside the rawlog), an option over the INI's key, the
+#   INI given to --config, missing rig options, relative --out from another directory, Ctrl-C,
+#   gzip garbage, both rig file names
 # Expects: about 40 scans/s and 200 encoder samples/s in the rawlog, no loss reported, and at
 # least 3 whole tilts written (a 3 s sweep at the default 1 Hz tilt rate holds 4-6 reversals).
-# Run as: cmake -DAPP=<rgbdt_tilt_lidar> -DWORK=<dir> -DRIG_INI=<rig.ini> -P app_test.cmake
+# Run as: cmake -DAPP=<rgbdt_tilt_lidar> -DWORK=<dir> -DRIG_INI=<rig.ini>
+#   -DRIG_YAML=<config/tilt_lidar_paper_rig.yaml> -P app_test.cmake
 file(REMOVE_RECURSE "${WORK}")
 file(MAKE_DIRECTORY "${WORK}")
 
@@ -49,6 +51,14 @@ endfunction()
 record_and_check(s record --ini "${RIG_INI}")
 set(scans ${s_scans})
 set(encoder ${s_encoder})
+
+# The paper's rig from the YAML option file alone (no INI): the same rig file as rig.ini's.
+record_and_check(paper --config "${RIG_YAML}" record)
+file(READ "${WORK}/s.tilt_rig.yaml" ini_rig)
+file(READ "${WORK}/paper.tilt_rig.yaml" yaml_rig)
+if(NOT ini_rig STREQUAL yaml_rig)
+  message(FATAL_ERROR "${RIG_YAML} and ${RIG_INI} describe one rig, but the rig files differ:\n${yaml_rig}\n${ini_rig}")
+endif()
 
 # An option over the INI's key: the mount's z from the command line, the rest from the INI.
 run_step(over "${APP}" record --ini "${RIG_INI}" --mount-z 0.125 --out "${WORK}/over.rawlog" --emulate --duration 1)
