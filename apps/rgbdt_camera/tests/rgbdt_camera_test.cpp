@@ -13,6 +13,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "rgbdt/core/time_index.hpp"
 #include "rgbdt/test/process.hpp"
@@ -134,6 +136,43 @@ TEST(RgbdtCamera, RecordsBayerAsColourPng) {
             0)
       << slurp(dir / "log");
   expect_consistent_recording(out, CV_8UC3);
+}
+
+// `--config FILE`: the record options from a YAML file, the command line over them.
+TEST(RgbdtCamera, RecordsWithTheOptionsOfAConfigFile) {
+  const auto dir = temp_dir("config");
+  const fs::path config = dir / "thermal.yaml";
+  rgbdt::test::write_text(config,
+                          "record:\n  interfaces: fake\n  id: Fake_1\n  frames: 30\n"
+                          "  pixel-format: Mono16\n  roi: [0, 0, 320, 256]\n  rate: 100\n");
+  const fs::path out = dir / "thermal";
+  ASSERT_EQ(run({"--config", config.string(), "record", "--out", out.string(), "--frames", "5"},
+                dir / "log"),
+            0)
+      << slurp(dir / "log");
+  const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
+  EXPECT_EQ(index.size(), 5u) << "--frames on the command line wins over the file's 30";
+  expect_consistent_recording(out, CV_16UC1);
+  const cv::Mat first = cv::imread(index.at(0).file, cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(first.cols, 320) << "the file's roi";
+  EXPECT_EQ(first.rows, 256);
+}
+
+TEST(RgbdtCamera, AnUnknownConfigKeyIsAnErrorNamingTheFileAndTheKey) {
+  const auto dir = temp_dir("config");
+  const fs::path config = dir / "typo.yaml";
+  rgbdt::test::write_text(config, "record:\n  interfaces: fake\n  pixel-fromat: Mono16\n");
+  const fs::path out = dir / "out";
+  const int code = run({"--config", config.string(), "record", "--id", "Fake_1", "--out",
+                        out.string(), "--frames", "3"},
+                       dir / "log");
+  EXPECT_GT(code, 0) << slurp(dir / "log");
+  EXPECT_LT(code, 128) << slurp(dir / "log");
+  const std::string text = slurp(dir / "log");
+  EXPECT_NE(text.find(config.string()), std::string::npos) << text;
+  EXPECT_NE(text.find("record.pixel-fromat"), std::string::npos) << text;
+  EXPECT_NE(text.find("line 3"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(out)) << "nothing is recorded with a wrong file";
 }
 
 TEST(RgbdtCamera, CtrlCLeavesOnlyWholeIndexedFrames) {
