@@ -175,6 +175,28 @@ TEST(RgbdtCamera, AnUnknownConfigKeyIsAnErrorNamingTheFileAndTheKey) {
   EXPECT_FALSE(fs::exists(out)) << "nothing is recorded with a wrong file";
 }
 
+// The camera files in config/ hold only options record takes, with values a GenICam camera
+// accepts: recorded from the fake camera in their pixel format (interface and id overridden).
+TEST(RgbdtCamera, TheCameraFilesOfConfigRecordFromTheFakeCamera) {
+  const auto dir = temp_dir("config");
+  const std::vector<std::pair<std::string, int>> files = {
+      {"camera_pointgrey_cm3.yaml", CV_8UC3},  // BayerRG8, demosaiced
+      {"camera_flir_tau2.yaml", CV_16UC1},     // Mono16
+  };
+  for (const auto& [name, type] : files) {
+    const fs::path config = fs::path(RGBDT_SOURCE_DIR) / "config" / name;
+    const fs::path out = dir / name;
+    const fs::path log = dir / (name + ".log");
+    ASSERT_EQ(run({"--config", config.string(), "record", "--interfaces", "fake", "--id", "Fake_1",
+                   "--out", out.string(), "--frames", "3"},
+                  log),
+              0)
+        << name << ": " << slurp(log);
+    EXPECT_NE(slurp(log).find("recorded 3 frames"), std::string::npos) << slurp(log);
+    expect_consistent_recording(out, type);
+  }
+}
+
 TEST(RgbdtCamera, CtrlCLeavesOnlyWholeIndexedFrames) {
   const auto dir = temp_dir("sigint");
   const fs::path out = dir / "thermal";
