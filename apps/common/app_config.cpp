@@ -6,6 +6,7 @@
 #include <cstring>
 #include <iterator>
 #include <memory>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -60,11 +61,25 @@ std::string keys_of(const CLI::App& app) {
   return out.empty() ? "none" : out;
 }
 
+/// The first line of `text` that is an INI section header (`[SECTION]`), with its number, or
+/// an empty string: an INI file given to `--config` gets a message that says so.
+std::string ini_section_line(const std::string& text, int& line_number) {
+  static const std::regex kSection(R"(^\s*\[[A-Za-z0-9_ .:-]+\]\s*$)");
+  std::istringstream in(text);
+  std::string line;
+  for (line_number = 1; std::getline(in, line); ++line_number) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (std::regex_match(line, kSection)) return line;
+  }
+  return {};
+}
+
 /// Reads the YAML into CLI11's items, checking every key against the app so that a typo is an
 /// error naming the file and line instead of a value silently left at its default.
 class YamlConfig : public CLI::Config {
  public:
-  YamlConfig(const CLI::App* app, std::string path) : app_(app), path_(std::move(path)) {}
+  YamlConfig(const CLI::App* app, std::string path, std::string ini_hint)
+      : app_(app), path_(std::move(path)), ini_hint_(std::move(ini_hint)) {}
 
   std::string to_config(const CLI::App* app, bool, bool, std::string) const override {
     return effective_config_yaml(*app);
@@ -86,7 +101,15 @@ class YamlConfig : public CLI::Config {
       const YAML::Node root = core::load_yaml_string(text, path_);
       collect(*app_, core::YamlField(root, path_), {}, items);
     } catch (const core::Error& e) {
-      throw CLI::ConfigError(e.what());
+      int line = 0;
+      const std::string section = ini_section_line(text, line);
+      if (section.empty()) throw CLI::ConfigError(e.what());
+      throw CLI::ConfigError(std::string(e.what()) + "\n" + path_ +
+                             " looks like an INI file (line " + std::to_string(line) + ": " +
+                             section +
+                             "); --config takes a YAML file of option values (examples in "
+                             "config/)" +
+                             (ini_hint_.empty() ? "" : "; " + ini_hint_));
     }
     return items;
   }
@@ -124,6 +147,7 @@ class YamlConfig : public CLI::Config {
 
   const CLI::App* app_;
   std::string path_;
+  std::string ini_hint_;
 };
 
 /// One option's effective value: what the command line or the file gave, else its default.
@@ -246,9 +270,10 @@ void emit_json(std::ostream& out, const Section& s) {
 
 }  // namespace
 
-void add_config_option(CLI::App& app, int argc, const char* const* argv) {
+void add_config_option(CLI::App& app, int argc, const char* const* argv,
+                       const std::string& ini_hint) {
   app.option_defaults()->always_capture_default();
-  app.config_formatter(std::make_shared<YamlConfig>(&app, config_path_in(argc, argv)));
+  app.config_formatter(std::make_shared<YamlConfig>(&app, config_path_in(argc, argv), ini_hint));
   app.set_config("--config", "",
                  "YAML file of option values: one key per long option name (without --), a "
                  "mapping per subcommand; the command line overrides it (examples in config/)");

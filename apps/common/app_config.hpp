@@ -21,8 +21,11 @@ namespace rgbdt::apps {
 /// Adds `--config FILE` to `app`. Call right after constructing `app`, before its options
 /// and subcommands are added: it also makes every option record its default, so that the
 /// effective configuration can name it. argv is read for the file's name (CLI11 does not
-/// hand it to the reader), to put it in error messages.
-void add_config_option(CLI::App& app, int argc, const char* const* argv);
+/// hand it to the reader), to put it in error messages. A file that is not a YAML mapping but
+/// has an INI section line (`[SECTION]`) is refused with a message that says it looks like an
+/// INI file, followed by `ini_hint`: where the app takes an INI instead, if anywhere.
+void add_config_option(CLI::App& app, int argc, const char* const* argv,
+                       const std::string& ini_hint = "");
 
 /// Every option of `app` and of its parsed subcommands (help, `--config` and options without
 /// a long name excepted) with its effective value, as YAML that `--config` reads back.

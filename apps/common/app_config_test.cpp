@@ -24,10 +24,11 @@ struct Demo {
   std::string initial;  // no default: written as `initial: ~`
   CLI::App* sim = nullptr;
 
-  explicit Demo(const std::vector<std::string>& args) : argv_strings(args) {
+  explicit Demo(const std::vector<std::string>& args, const std::string& ini_hint = "")
+      : argv_strings(args) {
     argv_strings.insert(argv_strings.begin(), "demo");
     for (const std::string& a : argv_strings) argv.push_back(a.c_str());
-    rgbdt::apps::add_config_option(app, static_cast<int>(argv.size()), argv.data());
+    rgbdt::apps::add_config_option(app, static_cast<int>(argv.size()), argv.data(), ini_hint);
     app.add_option("session", session, "session folder");
     app.add_option("--resolution", resolution, "voxel [m]")->check(CLI::PositiveNumber);
     app.add_option("--icp", icp, "backend")->check(CLI::IsMember({"rgicp", "gicp", "icp"}));
@@ -43,8 +44,8 @@ struct Demo {
   std::vector<const char*> argv;
 };
 
-std::string parse_error(const std::vector<std::string>& args) {
-  Demo d(args);
+std::string parse_error(const std::vector<std::string>& args, const std::string& ini_hint = "") {
+  Demo d(args, ini_hint);
   try {
     d.parse();
   } catch (const CLI::ParseError& e) {
@@ -107,6 +108,31 @@ TEST(AppConfig, BadValuesDuplicatesAndMissingFilesAreRefused) {
   EXPECT_NE(parse_error({"--config", (dir / "sub.yaml").string()}).find("vews"), std::string::npos);
   EXPECT_NE(parse_error({"--config", (dir / "absent.yaml").string()}).find("absent.yaml"),
             std::string::npos);
+}
+
+// An INI file (an MRPT rawlog-grabber section, say) is no YAML of options: the message says
+// what the file looks like and, from the app, where an INI goes instead.
+TEST(AppConfig, AnIniFileIsRefusedSayingItLooksLikeOneAndWhereItGoes) {
+  const auto dir = rgbdt::test::temp_dir("cfg");
+  rgbdt::test::write_text(dir / "rig.ini",
+                          "# a rig\n[TILT_LIDAR]\nIP_DIR = 192.168.0.10  // [m]: scanner\n"
+                          "tilt_min_deg = -20\n");
+  const std::string message =
+      parse_error({"--config", (dir / "rig.ini").string()}, "the INI goes to `sim --ini FILE`");
+  EXPECT_NE(message.find((dir / "rig.ini").string() + " looks like an INI file (line 2: "
+                                                      "[TILT_LIDAR])"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("the INI goes to `sim --ini FILE`"), std::string::npos) << message;
+  // A section line alone is valid YAML (a list), and still not a mapping of options.
+  rgbdt::test::write_text(dir / "section_only.ini", "[TILT_LIDAR]\n");
+  const std::string only = parse_error({"--config", (dir / "section_only.ini").string()});
+  EXPECT_NE(only.find("looks like an INI file (line 1: [TILT_LIDAR])"), std::string::npos) << only;
+  // A broken YAML file without a section line gets no such guess.
+  rgbdt::test::write_text(dir / "broken.yaml", "icp: [gicp\n");
+  const std::string broken = parse_error({"--config", (dir / "broken.yaml").string()});
+  EXPECT_NE(broken.find("broken.yaml"), std::string::npos) << broken;
+  EXPECT_EQ(broken.find("INI"), std::string::npos) << broken;
 }
 
 TEST(AppConfig, TheEffectiveConfigurationReadsBackAsTheSameValues) {

@@ -2,15 +2,16 @@
 // a FLIR Tau2 over its serial channel.
 #include <CLI/CLI.hpp>
 
-#include <cmath>
 #include <chrono>
-#include <filesystem>
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <sstream>
 #include <thread>
 
+#include "app_config.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/interrupt.hpp"
 #include "rgbdt/core/log.hpp"
@@ -307,7 +308,9 @@ int main(int argc, char** argv) {
       "          index.csv (time_s,file); Ctrl-C stops cleanly, a lost camera is reopened\n"
       "  tau2    query/configure a Tau2 core over its serial port (tty or FTDI via libusb)\n"
       "  tau2-emulate  serve a software Tau2 on a pseudo-terminal (no hardware)"};
+  rgbdt::apps::add_config_option(app, argc, argv);
   app.require_subcommand(1);
+  app.fallthrough();  // --config may also follow the command
 
   std::string list_interfaces = "gige,usb3";
   auto* list = app.add_subcommand("list", "List the cameras Aravis can see");
@@ -325,6 +328,9 @@ int main(int argc, char** argv) {
   auto* seconds_opt = record->add_option("--seconds", r.seconds, "Stop after S seconds")
                           ->check(CLI::PositiveNumber);
   frames_opt->excludes(seconds_opt);
+  // Unset means no limit: no default to show (0 is no valid count) or for --config to name.
+  frames_opt->default_str("");
+  seconds_opt->default_str("");
   record
       ->add_option(
           "--interfaces", r.interfaces,
@@ -332,7 +338,10 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   record->add_option("--pixel-format", r.pixel_format,
                      "Mono8, Mono16, BayerRG8, ... (default: keep)");
-  record->add_option("--roi", r.roi, "Region x,y,width,height [px]")->delimiter(',')->expected(4);
+  record->add_option("--roi", r.roi, "Region x,y,width,height [px] (default: keep)")
+      ->delimiter(',')
+      ->expected(4)
+      ->default_str("");
   record->add_option("--rate", r.rate_hz, "Frame rate [Hz] (default: keep)");
   record->add_option("--exposure", r.exposure_us, "Exposure [us] (default: keep)");
   record->add_option("--timeout-ms", r.timeout_ms, "Frame timeout [ms]")->capture_default_str();

@@ -1,9 +1,12 @@
 # End-to-end check of the app as a user runs it (ctest -P script):
-#   record 3 s from the emulated rig -> info -> assemble (rig found beside the rawlog),
-#   relative --out from another directory, Ctrl-C, gzip garbage, both rig file names
+#   record 3 s from the emulated rig (from rig.ini, and from the YAML option file without an
+#   INI) -> info -> assemble (rig found beside the rawlog), an option over the INI's key, the
+#   INI given to --config, missing rig options, relative --out from another directory, Ctrl-C,
+#   gzip garbage, both rig file names
 # Expects: about 40 scans/s and 200 encoder samples/s in the rawlog, no loss reported, and at
 # least 3 whole tilts written (a 3 s sweep at the default 1 Hz tilt rate holds 4-6 reversals).
-# Run as: cmake -DAPP=<rgbdt_tilt_lidar> -DWORK=<dir> -DRIG_INI=<rig.ini> -P app_test.cmake
+# Run as: cmake -DAPP=<rgbdt_tilt_lidar> -DWORK=<dir> -DRIG_INI=<rig.ini>
+#   -DRIG_YAML=<config/tilt_lidar_paper_rig.yaml> -P app_test.cmake
 file(REMOVE_RECURSE "${WORK}")
 file(MAKE_DIRECTORY "${WORK}")
 
@@ -15,28 +18,77 @@ function(run_step name)
   set(${name}_rc "${rc}" PARENT_SCOPE)
 endfunction()
 
-run_step(record "${APP}" record --config "${RIG_INI}" --out "${WORK}/s.rawlog" --emulate --duration 3)
-if(NOT record_rc EQUAL 0)
-  message(FATAL_ERROR "record failed (${record_rc}):\n${record_out}\n${record_err}")
-endif()
-if(NOT record_out MATCHES "recorded [0-9]+ records: ([0-9]+) scans \\(([0-9]+) missed\\), ([0-9]+) encoder samples \\(([0-9]+) failed reads\\)")
-  message(FATAL_ERROR "record printed no final statistics:\n${record_out}")
-endif()
-set(scans ${CMAKE_MATCH_1})
-set(encoder ${CMAKE_MATCH_3})
-# 3 s at 40 scans/s and 200 samples/s; a loaded CI machine may lose the first scan period
-# while the scanner starts, so allow 10 % below the nominal counts.
-if(scans LESS 108 OR encoder LESS 540)
-  message(FATAL_ERROR "expected ~120 scans and ~600 encoder samples in 3 s, got ${scans} and ${encoder}")
-endif()
-if(NOT EXISTS "${WORK}/s.tilt_rig.yaml")
-  message(FATAL_ERROR "record did not write s.tilt_rig.yaml beside the rawlog")
+# Records 3 s from the emulated rig into WORK/<stem>.rawlog with the record options in ARGN,
+# and checks the statistics, the rig file beside the rawlog and what `info` lists; sets
+# <stem>_scans and <stem>_encoder.
+function(record_and_check stem)
+  run_step(record "${APP}" ${ARGN} --out "${WORK}/${stem}.rawlog" --emulate --duration 3)
+  string(JOIN " " args ${ARGN})
+  if(NOT record_rc EQUAL 0)
+    message(FATAL_ERROR "${args} failed (${record_rc}):\n${record_out}\n${record_err}")
+  endif()
+  if(NOT record_out MATCHES "recorded [0-9]+ records: ([0-9]+) scans \\(([0-9]+) missed\\), ([0-9]+) encoder samples \\(([0-9]+) failed reads\\)")
+    message(FATAL_ERROR "${args} printed no final statistics:\n${record_out}")
+  endif()
+  set(scans ${CMAKE_MATCH_1})
+  set(encoder ${CMAKE_MATCH_3})
+  # 3 s at 40 scans/s and 200 samples/s; a loaded CI machine may lose the first scan period
+  # while the scanner starts, so allow 10 % below the nominal counts.
+  if(scans LESS 108 OR encoder LESS 540)
+    message(FATAL_ERROR "${args}: expected ~120 scans and ~600 encoder samples in 3 s, got ${scans} and ${encoder}")
+  endif()
+  if(NOT EXISTS "${WORK}/${stem}.tilt_rig.yaml")
+    message(FATAL_ERROR "${args} did not write ${stem}.tilt_rig.yaml beside the rawlog")
+  endif()
+  run_step(info "${APP}" info "${WORK}/${stem}.rawlog")
+  if(NOT info_rc EQUAL 0 OR NOT info_out MATCHES "HOKUYO +mrpt::obs::CObservation2DRangeScan +${scans} ")
+    message(FATAL_ERROR "info does not list the ${scans} HOKUYO scans of ${stem}.rawlog (${info_rc}):\n${info_out}\n${info_err}")
+  endif()
+  set(${stem}_scans ${scans} PARENT_SCOPE)
+  set(${stem}_encoder ${encoder} PARENT_SCOPE)
+endfunction()
+
+record_and_check(s record --ini "${RIG_INI}")
+set(scans ${s_scans})
+set(encoder ${s_encoder})
+
+# The paper's rig from the YAML option file alone (no INI): the same rig file as rig.ini's.
+record_and_check(paper --config "${RIG_YAML}" record)
+file(READ "${WORK}/s.tilt_rig.yaml" ini_rig)
+file(READ "${WORK}/paper.tilt_rig.yaml" yaml_rig)
+if(NOT ini_rig STREQUAL yaml_rig)
+  message(FATAL_ERROR "${RIG_YAML} and ${RIG_INI} describe one rig, but the rig files differ:\n${yaml_rig}\n${ini_rig}")
 endif()
 
-run_step(info "${APP}" info "${WORK}/s.rawlog")
-if(NOT info_rc EQUAL 0 OR NOT info_out MATCHES "HOKUYO +mrpt::obs::CObservation2DRangeScan +${scans} ")
-  message(FATAL_ERROR "info does not list the ${scans} HOKUYO scans (${info_rc}):\n${info_out}\n${info_err}")
+# An option over the INI's key: the mount's z from the command line, the rest from the INI.
+run_step(over "${APP}" record --ini "${RIG_INI}" --mount-z 0.125 --out "${WORK}/over.rawlog" --emulate --duration 1)
+file(READ "${WORK}/over.tilt_rig.yaml" over_rig)
+if(NOT over_rc EQUAL 0 OR NOT over_rig MATCHES "translation: \\[0, 0, 0\\.125\\]"
+   OR NOT over_rig MATCHES "counts_per_revolution: 501923")
+  message(FATAL_ERROR "record --ini rig.ini --mount-z 0.125 (${over_rc}) should write that mount:\n${over_rig}\n${over_err}")
 endif()
+
+# Without --ini and without the rig's options: an error that names what is missing, and no
+# output.
+run_step(bare "${APP}" record --dxl-id 1 --out "${WORK}/bare.rawlog")
+if(bare_rc EQUAL 0 OR NOT bare_err MATCHES "missing: --scanner-ip or --scanner-serial, --dxl-port, --dxl-baud, --dxl-counts-per-rev, --tilt-min-deg"
+   OR bare_err MATCHES "--dxl-id," OR EXISTS "${WORK}/bare.rawlog" OR EXISTS "${WORK}/bare.tilt_rig.yaml")
+  message(FATAL_ERROR "record without --ini or rig options should fail naming them (${bare_rc}):\n${bare_out}\n${bare_err}")
+endif()
+
+# The INI given to --config (where `record` took it before --config became the app's YAML
+# option file), before or after the command: an error that says the INI goes to --ini.
+foreach(order IN ITEMS before after)
+  if(order STREQUAL before)
+    run_step(old "${APP}" --config "${RIG_INI}" record --out "${WORK}/old.rawlog" --emulate --duration 1)
+  else()
+    run_step(old "${APP}" record --config "${RIG_INI}" --out "${WORK}/old.rawlog" --emulate --duration 1)
+  endif()
+  if(old_rc EQUAL 0 OR NOT old_err MATCHES "looks like an INI file \\(line [0-9]+: \\[TILT_LIDAR\\]\\).*`record --ini FILE`"
+     OR EXISTS "${WORK}/old.rawlog")
+    message(FATAL_ERROR "--config rig.ini (${order} record) should fail pointing to record --ini (${old_rc}):\n${old_out}\n${old_err}")
+  endif()
+endforeach()
 
 run_step(asm "${APP}" assemble "${WORK}/s.rawlog" --out "${WORK}/asm")
 if(NOT asm_rc EQUAL 0)

@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -18,6 +19,7 @@
 #include <mrpt/config/CConfigFileMemory.h>
 #include <mrpt/core/Clock.h>
 
+#include "app_config.hpp"
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/interrupt.hpp"
@@ -38,38 +40,185 @@ namespace {
 std::atomic<bool> g_stop{false};
 void on_signal(int) { g_stop = true; }
 
+/// A rig option of `record`: it writes one key of the INI section that the driver reads
+/// (tilt_lidar_sensor.hpp), over the --ini file's value of that key. Values are kept as the
+/// text given (checked as numbers by CLI11) so that an option not given stays empty: it leaves
+/// the key to the INI and shows as `~` in the effective configuration.
+struct RigOption {
+  enum class Kind { kText, kInteger, kNumber, kPositive };
+  enum class Need {
+    kWithoutIni,         ///< required when there is no --ini
+    kDeviceWithoutIni,   ///< required when there is no --ini, except with --emulate
+    kScannerWithoutIni,  ///< one of the two scanner addresses, as kDeviceWithoutIni
+    kNever,              ///< its default fits any rig: SCIP's port, the encoder rate
+  };
+  const char* name;
+  const char* ini_key;
+  const char* help;  ///< with the unit
+  Kind kind;
+  Need need;
+};
+
+using Kind = RigOption::Kind;
+using Need = RigOption::Need;
+const RigOption kRigOptions[] = {
+    {"--scanner-ip", "IP_DIR", "Ethernet scanner's IPv4 address (UTM-30LX: 192.168.0.10)",
+     Kind::kText, Need::kScannerWithoutIni},
+    {"--scanner-port", "PORT_DIR", "its TCP port (default 10940, SCIP's)", Kind::kInteger,
+     Need::kNever},
+    {"--scanner-serial", "COM_port_LIN",
+     "USB scanner's serial device, e.g. ttyACM0 (instead of --scanner-ip)", Kind::kText,
+     Need::kScannerWithoutIni},
+    {"--dxl-port", "DXL_port", "serial device of the Dynamixel bus, e.g. /dev/ttyUSB0", Kind::kText,
+     Need::kDeviceWithoutIni},
+    {"--dxl-baud", "DXL_baud", "the bus's baud rate [bit/s]", Kind::kInteger, Need::kWithoutIni},
+    {"--dxl-id", "DXL_id", "the tilt motor's Dynamixel id (0..252)", Kind::kInteger,
+     Need::kWithoutIni},
+    {"--dxl-counts-per-rev", "DXL_counts_per_rev",
+     "motor encoder counts per output revolution [counts/rev] (H54-200-S500-R: 501923)",
+     Kind::kPositive, Need::kWithoutIni},
+    {"--tilt-min-deg", "tilt_min_deg", "lower tilt limit [deg]", Kind::kNumber, Need::kWithoutIni},
+    {"--tilt-max-deg", "tilt_max_deg", "upper tilt limit [deg]", Kind::kNumber, Need::kWithoutIni},
+    {"--tilt-speed-deg-s", "tilt_speed_deg_s", "tilt speed [deg/s]", Kind::kPositive,
+     Need::kWithoutIni},
+    {"--encoder-rate-hz", "encoder_rate_hz", "encoder sampling rate [Hz] (default 200)",
+     Kind::kPositive, Need::kNever},
+    {"--mount-x", "mount_x", "scanner on the tilt axis (T_axis_scanner): x [m]", Kind::kNumber,
+     Need::kWithoutIni},
+    {"--mount-y", "mount_y", "T_axis_scanner: y [m]", Kind::kNumber, Need::kWithoutIni},
+    {"--mount-z", "mount_z", "T_axis_scanner: z [m]", Kind::kNumber, Need::kWithoutIni},
+    {"--mount-roll-deg", "mount_roll_deg", "T_axis_scanner: roll [deg]", Kind::kNumber,
+     Need::kWithoutIni},
+    {"--mount-pitch-deg", "mount_pitch_deg", "T_axis_scanner: pitch [deg]", Kind::kNumber,
+     Need::kWithoutIni},
+    {"--mount-yaw-deg", "mount_yaw_deg", "T_axis_scanner: yaw [deg]", Kind::kNumber,
+     Need::kWithoutIni},
+};
+constexpr std::size_t kRigOptionCount = std::size(kRigOptions);
+
 struct RecordArgs {
-  std::string config, section = "TILT_LIDAR", out, rig_out;
+  std::string ini, section = "TILT_LIDAR", out, rig_out;
+  std::array<std::string, kRigOptionCount> rig;  ///< by kRigOptions' index; empty: not given
+  std::string config;                            ///< the app's --config, to name it in messages
   double duration_s = 0;
   bool emulate = false;
   int kill_scanner_at_s = -1, scanner_back_at_s = -1;  // emulated outage, for demos/tests
 };
 
-int record(const RecordArgs& a) {
-  if (!fs::exists(a.config)) throw core::Error(a.config, "config file does not exist");
-  mrpt::config::CConfigFile ini(a.config);
-  tilt_lidar::TiltLidarConfig cfg;
-  std::unique_ptr<tilt_lidar::EmulatedRig> emu;
-  if (a.emulate) {
-    // Devices emulated in-process; the INI still gives geometry, limits and speeds.
-    mrpt::config::CConfigFileMemory mem;
+void add_rig_options(CLI::App& rec, RecordArgs& a) {
+  const std::string group =
+      "Rig (each sets the INI key named, over --ini's; without --ini all are required but "
+      "--scanner-port and --encoder-rate-hz, and --emulate supplies the devices' addresses)";
+  for (std::size_t i = 0; i < kRigOptionCount; ++i) {
+    const RigOption& o = kRigOptions[i];
+    CLI::Option* op =
+        rec.add_option(o.name, a.rig[i], std::string(o.help) + " (INI: " + o.ini_key + ")");
+    op->group(group);
+    // The value stays text (see RigOption); the checks make it a number, under the number's
+    // name in the help.
+    if (o.kind == Kind::kInteger) {
+      op->type_name("INT")->check(CLI::Validator(CLI::TypeValidator<int>()).description(""));
+    }
+    if (o.kind == Kind::kNumber)
+      op->type_name("FLOAT")->check(CLI::Validator(CLI::Number).description(""));
+    if (o.kind == Kind::kPositive) op->type_name("FLOAT")->check(CLI::PositiveNumber);
+  }
+  rec.get_option("--scanner-ip")->excludes("--scanner-serial");
+  rec.get_option("--scanner-port")->excludes("--scanner-serial");
+  rec.get_option("--scanner-port")->check(CLI::Range(1, 65535));
+  rec.get_option("--dxl-baud")->check(CLI::PositiveNumber);
+  rec.get_option("--dxl-id")->check(CLI::Range(0, 252));
+}
+
+/// The rig options that are required and missing: none with --ini (the INI or the driver's
+/// defaults give what is not given), else every one a rig cannot do without, so that no value
+/// of the paper's rig is taken for another's; the emulator supplies the devices' addresses.
+std::vector<std::string> missing_rig_options(const RecordArgs& a) {
+  std::vector<std::string> missing;
+  if (!a.ini.empty()) return missing;
+  bool scanner_given = false;
+  for (std::size_t i = 0; i < kRigOptionCount; ++i) {
+    const RigOption& o = kRigOptions[i];
+    if (o.need == Need::kScannerWithoutIni) scanner_given = scanner_given || !a.rig[i].empty();
+    const bool needed =
+        o.need == Need::kWithoutIni || (o.need == Need::kDeviceWithoutIni && !a.emulate);
+    if (needed && a.rig[i].empty()) missing.push_back(o.name);
+  }
+  if (!scanner_given && !a.emulate)
+    missing.insert(missing.begin(), "--scanner-ip or --scanner-serial");
+  return missing;
+}
+
+/// What the driver's configuration comes from, for its messages.
+std::string rig_source(const RecordArgs& a) {
+  const bool options = std::any_of(a.rig.begin(), a.rig.end(), [](auto& v) { return !v.empty(); });
+  if (!options) return a.ini;
+  const std::string opts =
+      "record's rig options" + (a.config.empty() ? std::string() : " (and " + a.config + ")");
+  return a.ini.empty() ? opts : a.ini + " with " + opts;
+}
+
+/// The INI section the driver's loadConfig reads (TiltLidarSensor, through
+/// load_tilt_lidar_config): the --ini file's keys, then each rig option given over its key.
+mrpt::config::CConfigFileMemory rig_section(const RecordArgs& a) {
+  mrpt::config::CConfigFileMemory mem;
+  if (!a.ini.empty()) {
+    if (!fs::exists(a.ini)) throw core::Error(a.ini, "INI file does not exist");
+    const mrpt::config::CConfigFile ini(a.ini);
+    if (!ini.sectionExists(a.section)) {
+      throw core::Error(a.ini, "has no section [" + a.section + "] (--section)");
+    }
     std::vector<std::string> keys;
     ini.getAllKeys(a.section, keys);
     for (const auto& k : keys) mem.write(a.section, k, ini.read_string(a.section, k, ""));
-    tilt_lidar::EmulatedRigOptions eo;
-    eo.motor.table.counts_per_revolution = mem.read_double(a.section, "DXL_counts_per_rev", 501923.0);
-    emu = std::make_unique<tilt_lidar::EmulatedRig>(eo);
-    mem.write(a.section, "IP_DIR", "127.0.0.1");
-    mem.write(a.section, "PORT_DIR", emu->hokuyo_port());
-    mem.write(a.section, "COM_port_LIN", "");
-    mem.write(a.section, "DXL_port", emu->motor_device());
-    cfg = tilt_lidar::load_tilt_lidar_config(mem, a.section, a.config);
-    std::printf("emulating: UTM-30LX on 127.0.0.1:%d, Dynamixel PRO on %s\n", emu->hokuyo_port(),
-                emu->motor_device().c_str());
-  } else {
-    cfg = tilt_lidar::load_tilt_lidar_config(ini, a.section, a.config);
   }
-  const std::string rig_out = a.rig_out.empty() ? (fs::path(a.out).replace_extension(".tilt_rig.yaml")).string() : a.rig_out;
+  for (std::size_t i = 0; i < kRigOptionCount; ++i) {
+    if (a.rig[i].empty()) continue;
+    const std::string key = kRigOptions[i].ini_key;
+    mem.write(a.section, key, a.rig[i]);
+    // The scanner is on one address: the one given replaces the INI's other.
+    if (key == "IP_DIR") mem.write(a.section, "COM_port_LIN", "");
+    if (key == "COM_port_LIN") mem.write(a.section, "IP_DIR", "");
+  }
+  return mem;
+}
+
+/// Starts an emulated UTM-30LX and Dynamixel PRO in-process and points the driver's section at
+/// them; the INI and the options still give the motor, geometry, limits and speeds.
+std::unique_ptr<tilt_lidar::EmulatedRig> start_emulated_rig(mrpt::config::CConfigFileMemory& mem,
+                                                            const std::string& section) {
+  tilt_lidar::EmulatedRigOptions eo;
+  eo.motor.table.counts_per_revolution =
+      mem.read_double(section, "DXL_counts_per_rev", eo.motor.table.counts_per_revolution);
+  eo.motor.id = static_cast<std::uint8_t>(std::clamp(mem.read_int(section, "DXL_id", 1), 0, 252));
+  auto emu = std::make_unique<tilt_lidar::EmulatedRig>(eo);
+  mem.write(section, "IP_DIR", "127.0.0.1");
+  mem.write(section, "PORT_DIR", emu->hokuyo_port());
+  mem.write(section, "COM_port_LIN", "");
+  mem.write(section, "DXL_port", emu->motor_device());
+  std::printf("emulating: UTM-30LX on 127.0.0.1:%d, Dynamixel PRO on %s\n", emu->hokuyo_port(),
+              emu->motor_device().c_str());
+  return emu;
+}
+
+int record(const RecordArgs& a) {
+  if (const auto missing = missing_rig_options(a); !missing.empty()) {
+    std::string list;
+    for (const auto& m : missing) list += (list.empty() ? "" : ", ") + m;
+    throw std::invalid_argument(
+        "record: without --ini the rig is described by options, and these are missing: " + list +
+        " (on the command line or in a --config YAML such as config/tilt_lidar_paper_rig.yaml), "
+        "or give --ini FILE");
+  }
+  mrpt::config::CConfigFileMemory mem = rig_section(a);
+  const std::string source = rig_source(a);
+  std::unique_ptr<tilt_lidar::EmulatedRig> emu;
+  if (a.emulate) emu = start_emulated_rig(mem, a.section);
+  const tilt_lidar::TiltLidarConfig cfg =
+      tilt_lidar::load_tilt_lidar_config(mem, a.section, source);
+  const std::string rig_out = a.rig_out.empty()
+                                  ? (fs::path(a.out).replace_extension(".tilt_rig.yaml")).string()
+                                  : a.rig_out;
   core::write_tilt_rig(rig_out, cfg.rig);
 
   tilt_lidar::RawlogWriterOptions wo;
@@ -90,14 +239,16 @@ int record(const RecordArgs& a) {
   bool outage_done = false, back_done = false;
   std::printf("recording to %s (rig: %s); Ctrl-C stops\n", a.out.c_str(), rig_out.c_str());
   while (!g_stop) {
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
     if (a.duration_s > 0 && elapsed >= a.duration_s) break;
     if (emu && a.kill_scanner_at_s >= 0 && !outage_done && elapsed >= a.kill_scanner_at_s) {
       std::printf("[emulation] scanner switched off\n");
       emu->hokuyo().stop();
       outage_done = true;
     }
-    if (emu && a.scanner_back_at_s >= 0 && outage_done && !back_done && elapsed >= a.scanner_back_at_s) {
+    if (emu && a.scanner_back_at_s >= 0 && outage_done && !back_done &&
+        elapsed >= a.scanner_back_at_s) {
       std::printf("[emulation] scanner switched on again\n");
       emu->hokuyo().start();
       back_done = true;
@@ -120,13 +271,15 @@ int record(const RecordArgs& a) {
     if (dt >= 1.0) {
       const auto s = sensor.stats();
       const auto& as = assembler.stats();
-      std::printf("t=%6.1fs  scans/s %5.1f  encoder/s %6.1f  tilts/s %4.2f  | dropped: scans %lld, encoder reads %lld, "
-                  "beams %lld | scanner %s, motor %s\n",
-                  std::chrono::duration<double>(now - t_start).count(), (s.scans - last.scans) / dt,
-                  (s.encoder_samples - last.encoder_samples) / dt, (tilts - last_tilts) / dt,
-                  static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_failures),
-                  static_cast<long long>(as.dropped_gap + as.dropped_no_encoder), s.scanner_ok ? "ok" : "LOST",
-                  s.motor_ok ? "ok" : "LOST");
+      std::printf(
+          "t=%6.1fs  scans/s %5.1f  encoder/s %6.1f  tilts/s %4.2f  | dropped: scans %lld, encoder "
+          "reads %lld, "
+          "beams %lld | scanner %s, motor %s\n",
+          std::chrono::duration<double>(now - t_start).count(), (s.scans - last.scans) / dt,
+          (s.encoder_samples - last.encoder_samples) / dt, (tilts - last_tilts) / dt,
+          static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_failures),
+          static_cast<long long>(as.dropped_gap + as.dropped_no_encoder),
+          s.scanner_ok ? "ok" : "LOST", s.motor_ok ? "ok" : "LOST");
       std::fflush(stdout);
       last = s;
       last_tilts = tilts;
@@ -136,15 +289,18 @@ int record(const RecordArgs& a) {
   }
   sensor.stop();
   for (const auto& [stamp, obj] : sensor.getObservations()) {
-    if (const auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj)) writer.write(*obs);
+    if (const auto obs = std::dynamic_pointer_cast<mrpt::obs::CObservation>(obj))
+      writer.write(*obs);
   }
   writer.close();
   const auto s = sensor.stats();
-  std::printf("recorded %lld records: %lld scans (%lld missed), %lld encoder samples (%lld failed reads), "
-              "scanner lost %lld times -> %s\n",
-              static_cast<long long>(writer.records()), static_cast<long long>(s.scans),
-              static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_samples),
-              static_cast<long long>(s.encoder_failures), static_cast<long long>(s.scanner_losses), a.out.c_str());
+  std::printf(
+      "recorded %lld records: %lld scans (%lld missed), %lld encoder samples (%lld failed reads), "
+      "scanner lost %lld times -> %s\n",
+      static_cast<long long>(writer.records()), static_cast<long long>(s.scans),
+      static_cast<long long>(s.scans_missed), static_cast<long long>(s.encoder_samples),
+      static_cast<long long>(s.encoder_failures), static_cast<long long>(s.scanner_losses),
+      a.out.c_str());
   return s.scans > 0 && s.encoder_samples > 0 ? 0 : 1;
 }
 
@@ -171,8 +327,9 @@ std::string find_rig(const AssembleArgs& a) {
       return p.string();
     }
   }
-  throw core::Error(a.rawlog, "no --rig given and neither " + stem_rig.string() + " (written by `record`) nor " +
-                                  dir_rig.string() + " (written by `rgbdt_sim mapping`) exists; pass --rig FILE");
+  throw core::Error(a.rawlog, "no --rig given and neither " + stem_rig.string() +
+                                  " (written by `record`) nor " + dir_rig.string() +
+                                  " (written by `rgbdt_sim mapping`) exists; pass --rig FILE");
 }
 
 int assemble(const AssembleArgs& a) {
@@ -216,42 +373,52 @@ int assemble(const AssembleArgs& a) {
         cloud::save_pcd(out.temp_path(), *t.cloud);
         out.commit();
         index.push_back({t.start_time_s, file.string()});
-        std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1, name,
-                    t.cloud->size(), t.stats.scans, t.start_time_s, t.end_time_s, t.direction > 0 ? "up" : "down");
+        std::printf("tilt %4zu  %s  %7zu points  %2d scans  %.3f..%.3f s  %s\n", index.size() - 1,
+                    name, t.cloud->size(), t.stats.scans, t.start_time_s, t.end_time_s,
+                    t.direction > 0 ? "up" : "down");
         std::fflush(stdout);
-        if (interrupt_after > 0 && static_cast<long>(index.size()) == interrupt_after) std::raise(SIGINT);
+        if (interrupt_after > 0 && static_cast<long>(index.size()) == interrupt_after)
+          std::raise(SIGINT);
       },
       {}, [] { return core::interrupted(); });
   // Rows name the clouds relative to the index's folder (they all live in it).
   std::ostringstream csv;
   csv << "time_s,file\n" << std::setprecision(15);
-  for (const auto& e : index) csv << e.time_s << ',' << fs::path(e.file).filename().string() << '\n';
+  for (const auto& e : index)
+    csv << e.time_s << ',' << fs::path(e.file).filename().string() << '\n';
   core::write_file_atomic(index_path.string(), csv.str());
   const auto& s = assembler.stats();
-  std::printf("%lld scans, %lld encoder samples -> %zu tilts in %s (%lld partial skipped)\n"
-              "points %lld, invalid %lld (%lld NaN/negative ranges refused), dropped in encoder gaps %lld, "
-              "without encoder %lld, duplicates %lld/%lld, late %lld/%lld\n",
-              static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples), index.size(),
-              index_path.c_str(), static_cast<long long>(skipped), static_cast<long long>(s.points),
-              static_cast<long long>(s.invalid), static_cast<long long>(r.beams_refused),
-              static_cast<long long>(s.dropped_gap), static_cast<long long>(s.dropped_no_encoder),
-              static_cast<long long>(s.scans_duplicate), static_cast<long long>(s.encoder_duplicate),
-              static_cast<long long>(s.scans_late), static_cast<long long>(s.encoder_late));
+  std::printf(
+      "%lld scans, %lld encoder samples -> %zu tilts in %s (%lld partial skipped)\n"
+      "points %lld, invalid %lld (%lld NaN/negative ranges refused), dropped in encoder gaps %lld, "
+      "without encoder %lld, duplicates %lld/%lld, late %lld/%lld\n",
+      static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples), index.size(),
+      index_path.c_str(), static_cast<long long>(skipped), static_cast<long long>(s.points),
+      static_cast<long long>(s.invalid), static_cast<long long>(r.beams_refused),
+      static_cast<long long>(s.dropped_gap), static_cast<long long>(s.dropped_no_encoder),
+      static_cast<long long>(s.scans_duplicate), static_cast<long long>(s.encoder_duplicate),
+      static_cast<long long>(s.scans_late), static_cast<long long>(s.encoder_late));
   if (r.interrupted) {
-    std::fprintf(stderr,
-                 "interrupted: %zu complete tilt clouds are written and listed in %s; the rest of %s was "
-                 "not assembled\n",
-                 index.size(), index_path.c_str(), a.rawlog.c_str());
+    std::fprintf(
+        stderr,
+        "interrupted: %zu complete tilt clouds are written and listed in %s; the rest of %s was "
+        "not assembled\n",
+        index.size(), index_path.c_str(), a.rawlog.c_str());
     return 130;
   }
   if (r.truncated) {
-    std::fprintf(stderr, "error: %s\n(the %zu tilts before the damaged record were written and indexed in %s)\n",
-                 r.error.c_str(), index.size(), index_path.c_str());
+    std::fprintf(
+        stderr,
+        "error: %s\n(the %zu tilts before the damaged record were written and indexed in %s)\n",
+        r.error.c_str(), index.size(), index_path.c_str());
     return 2;
   }
   if (index.empty()) {
-    std::fprintf(stderr, "error: %s: no complete tilt could be assembled (%lld scans, %lld encoder samples)\n",
-                 a.rawlog.c_str(), static_cast<long long>(r.scans), static_cast<long long>(r.encoder_samples));
+    std::fprintf(
+        stderr,
+        "error: %s: no complete tilt could be assembled (%lld scans, %lld encoder samples)\n",
+        a.rawlog.c_str(), static_cast<long long>(r.scans),
+        static_cast<long long>(r.encoder_samples));
     return 1;
   }
   return 0;
@@ -260,12 +427,13 @@ int assemble(const AssembleArgs& a) {
 int info(const std::string& rawlog) {
   const auto s = tilt_lidar::summarize_rawlog(rawlog);
   std::printf("%s: %lld observations\n", rawlog.c_str(), static_cast<long long>(s.observations));
-  std::printf("%-16s %-40s %8s %18s %18s %9s\n", "label", "class", "count", "first [s]", "last [s]", "rate [Hz]");
+  std::printf("%-16s %-40s %8s %18s %18s %9s\n", "label", "class", "count", "first [s]", "last [s]",
+              "rate [Hz]");
   for (const auto& [label, st] : s.streams) {
     const double span = st.last_time_s - st.first_time_s;
     std::printf("%-16s %-40s %8lld %18.6f %18.6f %9.2f\n", label.empty() ? "(none)" : label.c_str(),
-                st.class_name.c_str(), static_cast<long long>(st.count), st.first_time_s, st.last_time_s,
-                span > 0 ? (st.count - 1) / span : 0.0);
+                st.class_name.c_str(), static_cast<long long>(st.count), st.first_time_s,
+                st.last_time_s, span > 0 ? (st.count - 1) / span : 0.0);
   }
   if (s.truncated) {
     std::fprintf(stderr, "error: %s\n", s.error.c_str());
@@ -279,38 +447,60 @@ int info(const std::string& rawlog) {
 int main(int argc, char** argv) {
   CLI::App app{
       "rgbdt_tilt_lidar: tilting-LIDAR recorder and assembler.\n"
-      "  record    drive the scanner (MRPT CHokuyoURG) and the Dynamixel tilt motor, write the raw\n"
+      "  record    drive the scanner (MRPT CHokuyoURG) and the Dynamixel tilt motor, write the "
+      "raw\n"
       "            stream (HOKUYO scans + TILT_ENCODER samples) to an MRPT rawlog\n"
       "  assemble  turn a raw rawlog into one PCD per tilt plus clouds/index.csv\n"
       "  info      list the streams of a rawlog (any MRPT rawlog)"};
+  apps::add_config_option(app, argc, argv,
+                          "the MRPT rawlog-grabber INI of the rig is given with `record --ini "
+                          "FILE` (formerly `record --config`)");
   app.require_subcommand(1);
+  app.fallthrough();  // global options may also follow the command (`record --config F`)
   bool verbose = false;
   app.add_flag("-v,--verbose", verbose, "show library log messages (debug level)");
 
   RecordArgs ra;
   auto* rec = app.add_subcommand("record", "record the raw stream to an MRPT rawlog");
-  rec->add_option("--config", ra.config, "rawlog-grabber style INI (keys: see tilt_lidar_sensor.hpp)")->required();
-  rec->add_option("--section", ra.section, "INI section of the tilting LIDAR")->capture_default_str();
+  rec->add_option("--ini", ra.ini,
+                  "MRPT rawlog-grabber INI of the rig (keys: see tilt_lidar_sensor.hpp); the rig "
+                  "options below override its keys");
+  rec->add_option("--section", ra.section, "INI section of the tilting LIDAR")
+      ->capture_default_str();
   rec->add_option("--out", ra.out, "output rawlog")->required();
   rec->add_option("--rig-out", ra.rig_out, "tilt_rig.yaml to write (default: <out>.tilt_rig.yaml)");
-  rec->add_option("--duration", ra.duration_s, "stop after this many seconds (default: until Ctrl-C)");
-  rec->add_flag("--emulate", ra.emulate, "use an emulated UTM-30LX and Dynamixel PRO (no hardware)");
-  rec->add_option("--emulate-outage", ra.kill_scanner_at_s, "with --emulate: switch the scanner off at this second");
-  rec->add_option("--emulate-return", ra.scanner_back_at_s, "with --emulate: switch it on again at this second");
+  rec->add_option("--duration", ra.duration_s,
+                  "stop after this many seconds (default: until Ctrl-C)");
+  rec->add_flag("--emulate", ra.emulate,
+                "use an emulated UTM-30LX and Dynamixel PRO (no hardware)");
+  rec->add_option("--emulate-outage", ra.kill_scanner_at_s,
+                  "with --emulate: switch the scanner off at this second");
+  rec->add_option("--emulate-return", ra.scanner_back_at_s,
+                  "with --emulate: switch it on again at this second");
+  add_rig_options(*rec, ra);
 
   AssembleArgs aa;
   auto* asmb = app.add_subcommand("assemble", "assemble a raw rawlog into one PCD per tilt");
   asmb->add_option("rawlog", aa.rawlog, "input rawlog")->required()->check(CLI::ExistingFile);
-  asmb->add_option("--rig", aa.rig,
-                   "tilt_rig.yaml (frames, beam timing, encoder); default: <rawlog stem>.tilt_rig.yaml "
-                   "(written by `record`), else tilt_rig.yaml (written by `rgbdt_sim mapping`) beside the rawlog")
+  asmb->add_option(
+          "--rig", aa.rig,
+          "tilt_rig.yaml (frames, beam timing, encoder); default: <rawlog stem>.tilt_rig.yaml "
+          "(written by `record`), else tilt_rig.yaml (written by `rgbdt_sim mapping`) beside the "
+          "rawlog")
       ->check(CLI::ExistingFile);
-  asmb->add_option("--out", aa.out, "output folder (clouds/NNNNNN.pcd, clouds/index.csv)")->required();
-  asmb->add_option("--max-gap", aa.options.max_encoder_gap_s, "longest encoder gap to interpolate across [s]")->capture_default_str();
-  asmb->add_option("--encoder-offset", aa.options.encoder_time_offset_s, "encoder clock -> scanner clock offset [s]")->capture_default_str();
-  asmb->add_option("--hysteresis-deg", aa.options.reversal_hysteresis_rad, "reversal detection hysteresis [deg]")
-      ->transform([](std::string s) { return std::to_string(std::stod(s) * M_PI / 180.0); });
-  asmb->add_flag("--keep-partial", aa.keep_partial, "also write the incomplete first and last tilts");
+  asmb->add_option("--out", aa.out, "output folder (clouds/NNNNNN.pcd, clouds/index.csv)")
+      ->required();
+  asmb->add_option("--max-gap", aa.options.max_encoder_gap_s,
+                   "longest encoder gap to interpolate across [s]")
+      ->capture_default_str();
+  asmb->add_option("--encoder-offset", aa.options.encoder_time_offset_s,
+                   "encoder clock -> scanner clock offset [s]")
+      ->capture_default_str();
+  double hysteresis_deg = aa.options.reversal_hysteresis_rad * 180.0 / M_PI;
+  asmb->add_option("--hysteresis-deg", hysteresis_deg, "reversal detection hysteresis [deg]")
+      ->check(CLI::PositiveNumber);
+  asmb->add_flag("--keep-partial", aa.keep_partial,
+                 "also write the incomplete first and last tilts");
 
   std::string info_path;
   auto* inf = app.add_subcommand("info", "summarise a rawlog");
@@ -320,8 +510,12 @@ int main(int argc, char** argv) {
   core::set_log_sink(core::stderr_log_sink);
   core::set_log_level(verbose ? core::LogLevel::kDebug : core::LogLevel::kWarning);
   try {
-    if (*rec) return record(ra);
+    if (*rec) {
+      if (app.get_config_ptr()->count() > 0) ra.config = app.get_config_ptr()->as<std::string>();
+      return record(ra);
+    }
     if (*asmb) {
+      aa.options.reversal_hysteresis_rad = hysteresis_deg * M_PI / 180.0;
       if (const auto why = aa.options.validate(); !why.empty()) throw std::invalid_argument(why);
       return assemble(aa);
     }

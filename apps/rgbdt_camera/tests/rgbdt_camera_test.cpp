@@ -13,11 +13,13 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "rgbdt/core/time_index.hpp"
-#include "rgbdt/thermal_camera/tau2.hpp"
 #include "rgbdt/test/process.hpp"
 #include "rgbdt/test/test_util.hpp"
+#include "rgbdt/thermal_camera/tau2.hpp"
 
 extern char** environ;
 namespace fs = std::filesystem;
@@ -136,6 +138,65 @@ TEST(RgbdtCamera, RecordsBayerAsColourPng) {
   expect_consistent_recording(out, CV_8UC3);
 }
 
+// `--config FILE`: the record options from a YAML file, the command line over them.
+TEST(RgbdtCamera, RecordsWithTheOptionsOfAConfigFile) {
+  const auto dir = temp_dir("config");
+  const fs::path config = dir / "thermal.yaml";
+  rgbdt::test::write_text(config,
+                          "record:\n  interfaces: fake\n  id: Fake_1\n  frames: 30\n"
+                          "  pixel-format: Mono16\n  roi: [0, 0, 320, 256]\n  rate: 100\n");
+  const fs::path out = dir / "thermal";
+  ASSERT_EQ(run({"--config", config.string(), "record", "--out", out.string(), "--frames", "5"},
+                dir / "log"),
+            0)
+      << slurp(dir / "log");
+  const auto index = rgbdt::core::read_time_index((out / "index.csv").string());
+  EXPECT_EQ(index.size(), 5u) << "--frames on the command line wins over the file's 30";
+  expect_consistent_recording(out, CV_16UC1);
+  const cv::Mat first = cv::imread(index.at(0).file, cv::IMREAD_UNCHANGED);
+  EXPECT_EQ(first.cols, 320) << "the file's roi";
+  EXPECT_EQ(first.rows, 256);
+}
+
+TEST(RgbdtCamera, AnUnknownConfigKeyIsAnErrorNamingTheFileAndTheKey) {
+  const auto dir = temp_dir("config");
+  const fs::path config = dir / "typo.yaml";
+  rgbdt::test::write_text(config, "record:\n  interfaces: fake\n  pixel-fromat: Mono16\n");
+  const fs::path out = dir / "out";
+  const int code = run({"--config", config.string(), "record", "--id", "Fake_1", "--out",
+                        out.string(), "--frames", "3"},
+                       dir / "log");
+  EXPECT_GT(code, 0) << slurp(dir / "log");
+  EXPECT_LT(code, 128) << slurp(dir / "log");
+  const std::string text = slurp(dir / "log");
+  EXPECT_NE(text.find(config.string()), std::string::npos) << text;
+  EXPECT_NE(text.find("record.pixel-fromat"), std::string::npos) << text;
+  EXPECT_NE(text.find("line 3"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(out)) << "nothing is recorded with a wrong file";
+}
+
+// The camera files in config/ hold only options record takes, with values a GenICam camera
+// accepts: recorded from the fake camera in their pixel format (interface and id overridden).
+TEST(RgbdtCamera, TheCameraFilesOfConfigRecordFromTheFakeCamera) {
+  const auto dir = temp_dir("config");
+  const std::vector<std::pair<std::string, int>> files = {
+      {"camera_pointgrey_cm3.yaml", CV_8UC3},  // BayerRG8, demosaiced
+      {"camera_flir_tau2.yaml", CV_16UC1},     // Mono16
+  };
+  for (const auto& [name, type] : files) {
+    const fs::path config = fs::path(RGBDT_SOURCE_DIR) / "config" / name;
+    const fs::path out = dir / name;
+    const fs::path log = dir / (name + ".log");
+    ASSERT_EQ(run({"--config", config.string(), "record", "--interfaces", "fake", "--id", "Fake_1",
+                   "--out", out.string(), "--frames", "3"},
+                  log),
+              0)
+        << name << ": " << slurp(log);
+    EXPECT_NE(slurp(log).find("recorded 3 frames"), std::string::npos) << slurp(log);
+    expect_consistent_recording(out, type);
+  }
+}
+
 TEST(RgbdtCamera, CtrlCLeavesOnlyWholeIndexedFrames) {
   const auto dir = temp_dir("sigint");
   const fs::path out = dir / "thermal";
@@ -203,8 +264,8 @@ TEST(RgbdtCamera, BadRecordArgumentsAreRefusedNamingTheValue) {
   };
   int k = 0;
   for (const Case& c : cases) {
-    std::vector<std::string> args = {"record", "--interfaces", "fake", "--id", "Fake_1",
-                                     "--out", out.string(), "--frames", "3"};
+    std::vector<std::string> args = {"record", "--interfaces", "fake",     "--id", "Fake_1",
+                                     "--out",  out.string(),   "--frames", "3"};
     args.insert(args.end(), c.args.begin(), c.args.end());
     const fs::path log = dir / ("log" + std::to_string(k++));
     EXPECT_EQ(run(args, log), 1) << c.expected << ": " << slurp(log);
@@ -213,7 +274,10 @@ TEST(RgbdtCamera, BadRecordArgumentsAreRefusedNamingTheValue) {
   }
   {
     const fs::path log = dir / ("log" + std::to_string(k++));
-    EXPECT_EQ(run({"record", "--interfaces", "gige,serial", "--id", "Fake_1", "--out", out.string()}, log), 1)
+    EXPECT_EQ(
+        run({"record", "--interfaces", "gige,serial", "--id", "Fake_1", "--out", out.string()},
+            log),
+        1)
         << slurp(log);
     EXPECT_NE(slurp(log).find("'serial'"), std::string::npos) << slurp(log);
     EXPECT_FALSE(fs::exists(out));
