@@ -265,7 +265,16 @@ void check_agreement(const std::vector<TargetView>& views, const core::PinholeCa
   const double median_move = median(moves);
   for (size_t i = 0; i < assessed.size(); ++i) {
     ViewVerdict& vv = v.views[assessed[i]];
-    if (vv.lovo_rotation_deg > o.lovo_fail_deg || vv.lovo_translation_cm > o.lovo_fail_cm) {
+    const bool beyond_bounds = vv.lovo_rotation_deg > o.lovo_fail_deg || vv.lovo_translation_cm > o.lovo_fail_cm;
+    const bool within_uncertainty = vv.lovo_mahalanobis2 >= 0 && vv.lovo_mahalanobis2 <= o.lovo_chi2_bound;
+    if (beyond_bounds && within_uncertainty) {
+      vv.problem = fmt("without it the estimate moves %.2f deg and %.1f cm", vv.lovo_rotation_deg,
+                       vv.lovo_translation_cm) +
+                   fmt(", within the uncertainty of the estimate without it (squared Mahalanobis %.1f <= %.2f):",
+                       vv.lovo_mahalanobis2, o.lovo_chi2_bound) +
+                   " the views agree, but each pins the transform only loosely";
+      f.add(VerdictLevel::kWarn, vv.name + ": " + vv.problem);
+    } else if (beyond_bounds) {
       vv.problem = fmt("without it the estimate moves %.2f deg and %.1f cm", vv.lovo_rotation_deg,
                        vv.lovo_translation_cm) +
                    fmt(" (FAIL beyond %.1f deg or %.1f cm): the views disagree", o.lovo_fail_deg, o.lovo_fail_cm);

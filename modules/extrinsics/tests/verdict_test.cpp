@@ -57,6 +57,32 @@ TEST(Verdict, ConsistentViewsPass) {
   EXPECT_NE(format_verdict_report(v).find("**Verdict: PASS**"), std::string::npos);
 }
 
+// Leave-one-view-out judges a move by its bounds and by the uncertainty of the estimate
+// without the view. The consistent views of Table 1 move it by ~0.1 deg and ~0.5 cm; with
+// bounds far below that, every move is "beyond the bounds": within the uncertainty the
+// circles' 5 mm give, that is a WARN (the views agree, loosely); with the circles claimed
+// 100x more certain than they are, the same moves are beyond it and FAIL.
+TEST(Verdict, LeaveOneViewOutFailsOnlyBeyondTheUncertaintyToo) {
+  const core::PinholeCamera camera(testing::table1_intrinsics());
+  const auto views = noisy_views(camera, testing::table1_placements(), 1);
+  VerdictOptions o;
+  o.lovo_fail_deg = 1e-4;
+  o.lovo_fail_cm = 1e-3;
+  o.alignment.covariance_model.per_view.assign(views.size(), {LidarHoleSigma{0.005, 0.005, 0.0}});
+  const EdgeAlignmentResult r = align_edges(views, camera, o.alignment);
+  const CalibrationVerdict loose = judge_calibration(views, camera, r, o);
+  EXPECT_EQ(loose.level, VerdictLevel::kWarn) << loose.summary();
+  EXPECT_TRUE(has_reason(loose, VerdictLevel::kWarn, "the views agree, but each pins the transform only loosely"))
+      << loose.summary();
+  EXPECT_GT(loose.lovo_max_translation_cm, o.lovo_fail_cm);
+
+  o.alignment.covariance_model.per_view.assign(views.size(), {LidarHoleSigma{0.00005, 0.00005, 0.0}});
+  const EdgeAlignmentResult r_tight = align_edges(views, camera, o.alignment);
+  const CalibrationVerdict tight = judge_calibration(views, camera, r_tight, o);
+  EXPECT_EQ(tight.level, VerdictLevel::kFail) << tight.summary();
+  EXPECT_TRUE(has_reason(tight, VerdictLevel::kFail, "the views disagree")) << tight.summary();
+}
+
 // The LIDAR and image detectors each order a multi-hole board's holes from their own
 // viewpoint; the hole-centre check pairs them by position, not by index. Two-hole views
 // (Table 1's placements in pairs) with the image ellipses listed in reverse order.

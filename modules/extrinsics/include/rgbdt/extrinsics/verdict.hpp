@@ -44,9 +44,11 @@ struct VerdictOptions {
   double warn_ratio = 2.0;
   double fail_ratio = 5.0;
   /// Leave-one-view-out: FAIL when removing one view moves the estimate by more than this
-  /// much. Beyond 2 deg or 10 cm a point at 10 m lands 35 cm / 10 cm off on the image,
-  /// which no use of the calibration (colouring, fusion) tolerates: the views describe
-  /// different transforms.
+  /// much and beyond the uncertainty of the estimate without it (lovo_chi2_bound). Beyond
+  /// 2 deg or 10 cm a point at 10 m lands 35 cm / 10 cm off on the image, which no use of
+  /// the calibration (colouring, fusion) tolerates: the views describe different transforms.
+  /// A move that large but within that uncertainty is a WARN: the views agree, and the
+  /// estimate's own covariance (and the observability check) says how loosely they pin it.
   double lovo_fail_deg = 2.0;
   double lovo_fail_cm = 10.0;
   /// Leave-one-view-out: a view is named (WARN) when its removal moves the estimate beyond
