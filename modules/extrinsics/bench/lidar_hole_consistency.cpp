@@ -3,7 +3,8 @@
 // true error? The input of the covariance consistency study (calib_consistency), one level
 // down: simulated LIDAR views only (no images, no solve), so it runs in seconds.
 //
-//   cmake --build build --target lidar_hole_consistency && build/bin/lidar_hole_consistency [--seeds 4]
+//   cmake --build build --target lidar_hole_consistency && build/bin/lidar_hole_consistency
+//   [--seeds 4]
 //
 // One row per LIDAR kind, board (1 or 4 holes) and range noise: the views where the target
 // is found, the RMS true error of the hole centres and the RMS of their reported 1-sigma,
@@ -44,7 +45,8 @@ Eigen::Vector3d true_center(const std::vector<Eigen::Vector3d>& truth, const Eig
   return best;
 }
 
-void add_view(const sim::SimulatedLidarView& v, bool use_ring, const core::TargetSpec& target, Row* row) {
+void add_view(const sim::SimulatedLidarView& v, bool use_ring, const core::TargetSpec& target,
+              Row* row) {
   ++row->views;
   const auto det = calib_targets::detect_target_in_cloud(v.cloud, use_ring && v.has_ring, target);
   if (!det.ok) return;
@@ -53,9 +55,10 @@ void add_view(const sim::SimulatedLidarView& v, bool use_ring, const core::Targe
     const Eigen::Vector3d d = h.center - true_center(v.truth.hole_centers_lidar, h.center);
     const double along = d.dot(v.truth.normal_lidar);
     const double in_plane2 = (d - along * v.truth.normal_lidar).squaredNorm();
-    const extrinsics::LidarHoleSigma s =
-        extrinsics::lidar_hole_sigma(h.edge_points, det.board_points, h.center, h.normal, target.radius_m);
-    const double sp2 = s.center_in_plane_m * s.center_in_plane_m, sn2 = s.center_normal_m * s.center_normal_m;
+    const extrinsics::LidarHoleSigma s = extrinsics::lidar_hole_sigma(
+        h.edge_points, det.board_points, h.center, h.normal, target.radius_m);
+    const double sp2 = s.center_in_plane_m * s.center_in_plane_m,
+                 sn2 = s.center_normal_m * s.center_normal_m;
     ++row->holes;
     row->err_plane2 += in_plane2 / 2.0;
     row->sig_plane2 += sp2;
@@ -69,7 +72,9 @@ void add_view(const sim::SimulatedLidarView& v, bool use_ring, const core::Targe
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"lidar_hole_consistency: is each hole's LIDAR centre uncertainty as large as its true error?"};
+  CLI::App app{
+      "lidar_hole_consistency: is each hole's LIDAR centre uncertainty as large as its true "
+      "error?"};
   int seeds = 4, views = 3;
   app.add_option("--seeds", seeds, "simulated sessions per row")->check(CLI::Range(1, 1000));
   app.add_option("--views", views, "views per session")->check(CLI::Range(1, 10));
@@ -80,8 +85,8 @@ int main(int argc, char** argv) {
                         {"tilt-noring", sim::LidarKind::kTilt, false},
                         {"spinning16", sim::LidarKind::kSpinning16, true},
                         {"dense", sim::LidarKind::kDense, true}};
-  std::printf("%-11s %5s %5s %7s %5s | %8s %8s %7s | %8s %8s %7s\n", "lidar", "holes", "noise", "found", "n",
-              "err_mm", "sig_mm", "z2", "err_n_mm", "sig_n_mm", "z2_n");
+  std::printf("%-11s %5s %5s %7s %5s | %8s %8s %7s | %8s %8s %7s\n", "lidar", "holes", "noise",
+              "found", "n", "err_mm", "sig_mm", "z2", "err_n_mm", "sig_n_mm", "z2_n");
   bool honest = true;
   for (const Kind& kind : kinds) {
     for (int holes : {1, 4}) {
@@ -95,16 +100,19 @@ int main(int argc, char** argv) {
           opt.holes = holes;
           opt.lidar = kind.lidar;
           const core::TargetSpec target = sim::calibration_target(holes, holes == 1 ? 0.30 : 0.12);
-          for (const auto& v : sim::simulate_lidar_views(opt)) add_view(v, kind.use_ring, target, &row);
+          for (const auto& v : sim::simulate_lidar_views(opt))
+            add_view(v, kind.use_ring, target, &row);
         }
-        std::printf("%-11s %5d %5.2f %3d/%-3d %5d", kind.name, holes, noise, row.found, row.views, row.holes);
+        std::printf("%-11s %5d %5.2f %3d/%-3d %5d", kind.name, holes, noise, row.found, row.views,
+                    row.holes);
         if (row.holes == 0) {
           std::printf(" | no hole found\n");
           continue;
         }
         const double n = row.holes;
-        std::printf(" | %8.2f %8.2f %7.1f | %8.2f %8.2f %7.1f\n", 1e3 * std::sqrt(row.err_plane2 / n),
-                    1e3 * std::sqrt(row.sig_plane2 / n), row.z2_plane / n, 1e3 * std::sqrt(row.err_normal2 / n),
+        std::printf(" | %8.2f %8.2f %7.1f | %8.2f %8.2f %7.1f\n",
+                    1e3 * std::sqrt(row.err_plane2 / n), 1e3 * std::sqrt(row.sig_plane2 / n),
+                    row.z2_plane / n, 1e3 * std::sqrt(row.err_normal2 / n),
                     1e3 * std::sqrt(row.sig_normal2 / n), row.z2_normal / n);
         honest = honest && row.z2_plane / n <= 3.0 && row.z2_normal / n <= 3.0;
       }
