@@ -172,7 +172,7 @@ TEST(RgbdtCalibrate, AFailingCameraIsReportedAndTheOthersAreWritten) {
   const AppRun r = run_app(session + " --out " + out + " --seeds none --initial " + session + "/away.yaml");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
-  EXPECT_TRUE(fs::exists(out + "/overlay_rgb_000.png")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/overlay_rgb_000.jpg")) << r.output;
   EXPECT_FALSE(fs::exists(out + "/extrinsics_thermal.yaml")) << r.output;
   EXPECT_FALSE(fs::exists(out + "/extrinsics_thermal_rgb.yaml")) << r.output;
   EXPECT_NE(r.output.find("error: camera thermal: not calibrated: "), std::string::npos) << r.output;
@@ -302,7 +302,7 @@ TEST(RgbdtCalibrate, ALongCameraNameGivesWholeOverlayNames) {
   const std::string out = dir + "/out";
   const AppRun r = run_app(dir + " --out " + out + " --camera " + name);
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_TRUE(fs::exists(out + "/overlay_" + name + "_000.png")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/overlay_" + name + "_000.jpg")) << r.output;
   EXPECT_TRUE(fs::exists(out + "/extrinsics_" + name + ".yaml")) << r.output;
 }
 
@@ -393,8 +393,14 @@ TEST(RgbdtCalibrate, HopelessSessionFailsAndWritesOnlyTheRejectedEstimate) {
   const std::string out = dir + "/out";
   fs::create_directories(out);
   { std::ofstream(out + "/extrinsics_rgb.yaml") << "stale\n"; }
+  // Overlays of views this run does not have, as JPEG and as the PNG of older versions.
+  { std::ofstream(out + "/overlay_rgb_099.jpg") << "stale\n"; }
+  { std::ofstream(out + "/overlay_rgb_098.png") << "stale\n"; }
   const AppRun r = run_app(dir + " --out " + out + " --camera rgb --seeds none");
   EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/overlay_rgb_099.jpg")) << r.output;
+  EXPECT_FALSE(fs::exists(out + "/overlay_rgb_098.png")) << r.output;
+  EXPECT_TRUE(fs::exists(out + "/overlay_rgb_000.jpg")) << r.output;
   EXPECT_FALSE(fs::exists(out + "/extrinsics_rgb.yaml")) << r.output;
   EXPECT_TRUE(fs::exists(out + "/extrinsics_rgb.rejected.yaml")) << r.output;
   EXPECT_FALSE(fs::exists(out + "/extrinsics_thermal_rgb.yaml")) << r.output;

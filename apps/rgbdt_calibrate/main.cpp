@@ -69,14 +69,16 @@ std::string overlay_banner(const ext::CalibrationVerdict& verdict, size_t view) 
   return verdict.views[view].problem;
 }
 
-/// overlay_<camera>_<view>.png of an earlier run of `camera` (the digits after the camera's
-/// name keep camera "rgb" from matching camera "rgb_2"'s overlays).
+/// overlay_<camera>_<view>.jpg of an earlier run of `camera`, or .png of a run of a version
+/// that wrote PNG overlays (the digits after the camera's name keep camera "rgb" from
+/// matching camera "rgb_2"'s overlays).
 bool is_overlay_of(const std::string& file, const std::string& camera) {
-  const std::string prefix = "overlay_" + camera + "_", suffix = ".png";
-  if (file.size() <= prefix.size() + suffix.size() || file.compare(0, prefix.size(), prefix) != 0 ||
-      file.compare(file.size() - suffix.size(), suffix.size(), suffix) != 0)
-    return false;
-  for (size_t k = prefix.size(); k < file.size() - suffix.size(); ++k)
+  const std::string prefix = "overlay_" + camera + "_";
+  const std::size_t suffix_size = 4;  // ".jpg", ".png"
+  if (file.size() <= prefix.size() + suffix_size || file.compare(0, prefix.size(), prefix) != 0) return false;
+  const std::string suffix = file.substr(file.size() - suffix_size);
+  if (suffix != rgbdt::calibrate::kOverlayExtension && suffix != ".png") return false;
+  for (size_t k = prefix.size(); k < file.size() - suffix_size; ++k)
     if (!std::isdigit(static_cast<unsigned char>(file[k]))) return false;
   return true;
 }
@@ -84,7 +86,7 @@ bool is_overlay_of(const std::string& file, const std::string& camera) {
 std::string overlay_name(const std::string& camera, int view) {
   std::string digits = std::to_string(view);
   if (digits.size() < 3) digits.insert(0, 3 - digits.size(), '0');
-  return "overlay_" + camera + "_" + digits + ".png";
+  return "overlay_" + camera + "_" + digits + rgbdt::calibrate::kOverlayExtension;
 }
 
 /// One row per hole of every view of a camera: the LIDAR hole, its image ellipse (when the
@@ -145,7 +147,7 @@ constexpr char kDescription[] =
     "                                     camera passed or warned. Frames: lidar and the "
     "camera's\n"
     "                                     name, as in the YAML, or as --frames renames them\n"
-    "  overlay_<camera>_<view>.png        image edges blue, LIDAR circle before red, after\n"
+    "  overlay_<camera>_<view>.jpg        image edges blue, LIDAR circle before red, after\n"
     "                                     green; a red 'REJECTED: reason' banner on failed "
     "views\n"
     "  detections_<camera>.csv            one row per hole and view: LIDAR centre x y z [m],\n"
@@ -426,8 +428,8 @@ std::string write_camera_outputs(const Setup& setup, const std::string& name,
     core::TempOutput overlay((out / overlay_name(name, cv.session_index[k])).string());
     const cv::Mat drawn = ext::draw_overlay(image, cv.views[k], camera, r.T_camera_lidar_initial,
                                             r.T_camera_lidar, overlay_banner(verdict, k));
-    if (!cv::imwrite(overlay.temp_path(), drawn, rgbdt::calibrate::kOverlayPngParams))
-      throw core::Error(overlay.path(), "cannot write the overlay PNG");
+    if (!cv::imwrite(overlay.temp_path(), drawn, rgbdt::calibrate::kOverlayJpegParams))
+      throw core::Error(overlay.path(), "cannot write the overlay JPEG");
     overlay.commit();
   }
   std::printf("  wrote %zu overlays\n", cv.views.size());

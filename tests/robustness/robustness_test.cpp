@@ -245,12 +245,13 @@ class Calibrate : public ::testing::Test {
   fs::path session_, out_;
 };
 
-// A full disk: every output larger than 64 kB fails to be written (the extrinsics YAML
-// and report.md fit; the overlay PNGs do not). The run must say which file failed and
+// A full disk: every output larger than 8 kB fails to be written (the extrinsics YAML,
+// 1.5 kB, and report.md, 4 kB, fit; the overlay JPEGs, 20 kB thermal and 70-80 kB RGB, do
+// not, so every camera fails). The run must say which file failed and
 // leave no report.md or extrinsics YAML that looks like a finished calibration.
 TEST_F(Calibrate, FullDiskIsAnErrorNamingTheFile) {
   const RunResult r = run_app("rgbdt_calibrate", {session_.string(), "--out", out_.string()},
-                              rgbdt::test::temp_path("calibrate.log"), 64 * 1024);
+                              rgbdt::test::temp_path("calibrate.log"), 8 * 1024);
   expect_clean_failure(r, out_.string(), out_);
 }
 

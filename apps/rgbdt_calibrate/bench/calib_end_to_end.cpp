@@ -53,7 +53,7 @@ namespace {
 enum Stage { kLoad, kLidar, kImage, kSolve, kReport, kOverlays, kNumStages };
 const std::array<const char*, kNumStages> kStageNames = {"load (clouds, images)", "LIDAR detection",
                                                          "image detection", "solve",
-                                                         "report", "overlays (draw, PNG)"};
+                                                         "report", "overlays (draw, JPEG)"};
 
 double process_cpu_s() {
   timespec ts;
@@ -145,11 +145,12 @@ RunResult run_pipeline(const core::CalibrationSession& session,
       StageClock c(&r.stage[kOverlays]);
       for (std::size_t k = 0; k < views[name].size(); ++k) {
         const cv::Mat image = cv::imread(image_paths[name][k], cv::IMREAD_UNCHANGED);
-        const fs::path png = out_dir / ("overlay_" + name + "_" + std::to_string(k) + ".png");
+        const fs::path png =
+            out_dir / ("overlay_" + name + "_" + std::to_string(k) + rgbdt::calibrate::kOverlayExtension);
         if (!cv::imwrite(png.string(),
                          ext::draw_overlay(image, views[name][k], camera, result.T_camera_lidar_initial,
                                            result.T_camera_lidar),
-                         rgbdt::calibrate::kOverlayPngParams))
+                         rgbdt::calibrate::kOverlayJpegParams))
           r.problem += png.string() + ": cannot write; ";
       }
     }
