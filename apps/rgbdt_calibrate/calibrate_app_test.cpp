@@ -285,6 +285,28 @@ TEST(RgbdtCalibrate, RosOutputsHoldTheInverseOfTheYamlInTheGivenFrames) {
   EXPECT_EQ(joints, 1u) << urdf;
 }
 
+// A session's frames.yaml (rgbdt_import writes it from the bag's frame_ids) names the frames
+// of the ROS outputs; --frames overrides it key by key. A frames.yaml naming no sensor of the
+// session is an error naming the file and the key.
+TEST(RgbdtCalibrate, TheSessionsFramesYamlNamesTheRosFramesUnderFrames) {
+  const std::string session = simulate_session("rgbdt_calibrate_frames_yaml");
+  const std::string out = session + "/out";
+  { std::ofstream(session + "/frames.yaml") << "lidar: os_sensor\nrgb: camera_color_optical_frame\nleft: cam\n"; }
+  const AppRun bad = run_app(session + " --out " + out + " --camera rgb --seeds none");
+  EXPECT_EQ(bad.exit_code, 1) << bad.output;
+  EXPECT_NE(bad.output.find(session + "/frames.yaml: 'left' is neither lidar nor a camera of the session"),
+            std::string::npos)
+      << bad.output;
+  { std::ofstream(session + "/frames.yaml") << "lidar: os_sensor\nrgb: camera_color_optical_frame\n"; }
+  const AppRun r = run_app(session + " --out " + out + " --camera rgb --seeds none --frames lidar=base_lidar");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  const std::string launch = read_text(out + "/static_transforms.launch.py");
+  EXPECT_NE(launch.find("'--frame-id', 'base_lidar', '--child-frame-id', 'camera_color_optical_frame'"),
+            std::string::npos)
+      << launch;
+  EXPECT_EQ(launch.find("os_sensor"), std::string::npos) << launch;
+}
+
 // A camera name far longer than any fixed buffer: the overlays carry the whole name.
 TEST(RgbdtCalibrate, ALongCameraNameGivesWholeOverlayNames) {
   const std::string dir = simulate_session("rgbdt_calibrate_long_name");

@@ -210,7 +210,8 @@ void add_options(CLI::App& app, Arguments& args) {
   app.add_option("--frames", args.frames_text,
                  "frame ids of static_transforms.launch.py and urdf_joints.xml: lidar=FRAME and "
                  "CAMERA=FRAME, comma-separated, any subset, e.g. lidar=velodyne,rgb=camera_link "
-                 "(default: lidar and each camera's name; the extrinsics YAML keeps those)");
+                 "(default: the session's frames.yaml, which rgbdt_import writes from the bag's "
+                 "frame_ids, else lidar and each camera's name; the extrinsics YAML keeps those)");
   app.add_flag(
       "--lidar-only", args.lidar_only,
       "detect the target in the clouds only: detections_lidar.csv and report.md, no camera");
@@ -260,11 +261,16 @@ bool read_cameras(const core::CalibrationSession& session, const std::string& ca
   return true;
 }
 
+/// The frames of the ROS outputs: the session's frames.yaml (the bag's frame_ids, written by
+/// rgbdt_import) when it has one, then --frames over it.
 rgbdt::calibrate::RosFrames ros_frames_of(const core::CalibrationSession& session,
                                           const std::string& frames_text) {
   std::vector<std::string> camera_names;
   for (const auto& [name, entry] : session.cameras) camera_names.push_back(name);
-  return rgbdt::calibrate::parse_ros_frames(frames_text, camera_names);
+  rgbdt::calibrate::RosFrames base;
+  const fs::path file = fs::path(session.directory) / rgbdt::calibrate::kSessionFramesFile;
+  if (fs::exists(file)) base = rgbdt::calibrate::read_session_frames(file.string(), camera_names);
+  return rgbdt::calibrate::parse_ros_frames(frames_text, camera_names, std::move(base));
 }
 
 /// The files of this run in the output folder.

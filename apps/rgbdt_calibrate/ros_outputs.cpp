@@ -1,5 +1,6 @@
 #include "ros_outputs.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <set>
@@ -7,6 +8,7 @@
 
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/transform.hpp"
+#include "rgbdt/core/yaml_util.hpp"
 
 namespace rgbdt::calibrate {
 namespace {
@@ -77,10 +79,51 @@ std::string RosFrames::camera(const std::string& name) const {
   return it == cameras.end() ? name : it->second;
 }
 
-RosFrames parse_ros_frames(const std::string& text, const std::vector<std::string>& cameras) {
+namespace {
+
+/// Why `key` is neither "lidar" nor one of `cameras`; empty when it is one.
+std::string unknown_key(const std::string& key, const std::vector<std::string>& cameras) {
+  if (key == "lidar" || std::find(cameras.begin(), cameras.end(), key) != cameras.end()) return {};
+  std::string names;
+  for (const auto& c : cameras) names += " " + c;
+  return "'" + key + "' is neither lidar nor a camera of the session (it has:" + names + ")";
+}
+
+/// Why `frame` cannot be a ROS frame id; empty when it can.
+std::string bad_frame(const std::string& frame, const std::string& key) {
+  if (frame.empty()) return "the frame of " + key + " is empty";
+  for (const char c : frame)
+    if (std::isspace(static_cast<unsigned char>(c)) || std::iscntrl(static_cast<unsigned char>(c)) ||
+        c == '"' || c == '\'' || c == '\\' || c == '<' || c == '>' || c == '&')
+      return "frame '" + frame + "' of " + key + " holds a space, quote or markup character; a ROS frame id does not";
+  return {};
+}
+
+void set_frame(RosFrames& frames, const std::string& key, const std::string& frame) {
+  if (key == "lidar")
+    frames.lidar = frame;
+  else
+    frames.cameras[key] = frame;
+}
+
+}  // namespace
+
+RosFrames read_session_frames(const std::string& path, const std::vector<std::string>& cameras) {
+  const core::YamlField root(core::load_yaml_file(path), path);
   RosFrames frames;
+  for (const auto& [key, value] : root.entries("a mapping of lidar and camera names to ROS frame ids")) {
+    if (std::string why = unknown_key(key, cameras); !why.empty()) throw core::Error(path, why);
+    const std::string frame = value.as_string("a ROS frame id");
+    if (std::string why = bad_frame(frame, key); !why.empty()) throw core::Error(path, why);
+    set_frame(frames, key, frame);
+  }
+  return frames;
+}
+
+RosFrames parse_ros_frames(const std::string& text, const std::vector<std::string>& cameras,
+                           RosFrames base) {
+  RosFrames frames = std::move(base);
   if (text.empty()) return frames;
-  const std::set<std::string> known(cameras.begin(), cameras.end());
   std::set<std::string> seen;
   std::stringstream ss(text);
   std::string entry;
@@ -91,25 +134,10 @@ RosFrames parse_ros_frames(const std::string& text, const std::vector<std::strin
     if (eq == std::string::npos || key.empty() || frame.empty())
       throw core::Error("--frames", "entry '" + entry +
                                         "' is not KEY=FRAME (e.g. lidar=velodyne,rgb=camera_link)");
-    if (key != "lidar" && !known.count(key)) {
-      std::string names;
-      for (const auto& c : cameras) names += " " + c;
-      throw core::Error(
-          "--frames",
-          "'" + key + "' is neither lidar nor a camera of the session (it has:" + names + ")");
-    }
-    for (const char c : frame)
-      if (std::isspace(static_cast<unsigned char>(c)) ||
-          std::iscntrl(static_cast<unsigned char>(c)) || c == '"' || c == '\'' || c == '\\' ||
-          c == '<' || c == '>' || c == '&')
-        throw core::Error("--frames",
-                          "frame '" + frame + "' of " + key +
-                              " holds a space, quote or markup character; a ROS frame id does not");
+    if (std::string why = unknown_key(key, cameras); !why.empty()) throw core::Error("--frames", why);
+    if (std::string why = bad_frame(frame, key); !why.empty()) throw core::Error("--frames", why);
     if (!seen.insert(key).second) throw core::Error("--frames", "'" + key + "' is given twice");
-    if (key == "lidar")
-      frames.lidar = frame;
-    else
-      frames.cameras[key] = frame;
+    set_frame(frames, key, frame);
   }
   return frames;
 }

@@ -20,10 +20,20 @@ struct RosFrames {
   std::string camera(const std::string& name) const;
 };
 
-/// Parses --frames: "lidar=NAME,CAMERA=NAME,..." (any subset, any order). Keys are "lidar" or
-/// a name of `cameras`; a frame is non-empty, without spaces, quotes or control characters.
-/// Throws rgbdt::core::Error naming the option and the bad entry.
-RosFrames parse_ros_frames(const std::string& text, const std::vector<std::string>& cameras);
+/// Parses --frames: "lidar=NAME,CAMERA=NAME,..." (any subset, any order) over `base`. Keys are
+/// "lidar" or a name of `cameras`; a frame is non-empty, without spaces, quotes or control
+/// characters. Throws rgbdt::core::Error naming the option and the bad entry.
+RosFrames parse_ros_frames(const std::string& text, const std::vector<std::string>& cameras,
+                           RosFrames base = {});
+
+/// The file of a session that rgbdt_import writes beside session.yaml: each sensor's ROS
+/// frame_id from the header of its first message in the bag, a mapping of "lidar" and camera
+/// names to frames. The default frames of the ROS outputs; --frames overrides them.
+inline constexpr const char* kSessionFramesFile = "frames.yaml";
+
+/// Reads a session's frames.yaml (the keys and frames as for --frames); throws
+/// rgbdt::core::Error naming the file, the key and what was expected.
+RosFrames read_session_frames(const std::string& path, const std::vector<std::string>& cameras);
 
 /// One calibrated camera: its session name and T_camera_lidar.
 struct RosCamera {

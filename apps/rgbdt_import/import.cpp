@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <fstream>
@@ -711,6 +712,63 @@ ImportResult import_calibration(const ImportOptions& options, Plan& plan, Stagin
   return result;
 }
 
+// A frame_id as ROS names frames: letters, digits, '_', '/', '.' and '-'.
+bool is_ros_frame_id(const std::string& frame) {
+  if (frame.empty()) return false;
+  for (const char c : frame)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_' && c != '/' && c != '.' && c != '-')
+      return false;
+  return true;
+}
+
+// frames.yaml: the header.frame_id of the first message of the LIDAR's and of each camera's
+// image topic (in the time window), for rgbdt_calibrate's ROS outputs. An empty frame_id is
+// left out, and one with other characters than a ROS frame's is left out saying so; without
+// any, no file.
+void write_frames(const ImportOptions& options, const Plan& plan, const StagingDir& dir,
+                  std::FILE* report) {
+  std::map<std::string, std::string> sensor_of{{plan.lidar.name, "lidar"}};
+  for (const Camera& camera : plan.cameras) sensor_of[camera.image.name] = camera.source.name;
+  std::vector<std::string> topics;
+  for (const auto& [topic, sensor] : sensor_of) topics.push_back(topic);
+  std::map<std::string, std::string> frame_of;  // sensor -> frame_id
+  const auto reader = open_topics(options, plan, topics);
+  std::size_t seen = 0;
+  while (seen < sensor_of.size()) {
+    const auto message = reader->next();
+    if (!message) break;
+    const std::string& sensor = sensor_of.at(message->topic->name);
+    if (frame_of.count(sensor)) continue;
+    const bag::MessageContext context = bag::context_of(*message);
+    bag::Header header;
+    if (sensor == "lidar") {
+      header = bag::decode_point_cloud2(message->data, message->size, context).header;
+    } else {
+      const auto camera = std::find_if(plan.cameras.begin(), plan.cameras.end(),
+                                       [&](const Camera& c) { return c.source.name == sensor; });
+      header = camera->compressed
+                   ? bag::decode_compressed_image(message->data, message->size, context).header
+                   : bag::decode_image(message->data, message->size, context).header;
+    }
+    frame_of[sensor] = header.frame_id;
+    ++seen;
+  }
+  std::ostringstream yaml;
+  yaml << "# Each sensor's ROS frame_id, from the header of its first message in the bag\n"
+          "# (rgbdt_import). rgbdt_calibrate names the frames of its ROS outputs after it.\n";
+  bool any = false;
+  for (const auto& [sensor, frame] : frame_of) {
+    if (frame.empty()) continue;
+    if (!is_ros_frame_id(frame)) {
+      if (report) std::fprintf(report, "frame_id of %s left out of frames.yaml: not a ROS frame name\n", sensor.c_str());
+      continue;
+    }
+    yaml << sensor << ": " << frame << "\n";
+    any = true;
+  }
+  if (any) core::write_file_atomic((dir / "frames.yaml").string(), yaml.str());
+}
+
 }  // namespace
 
 ImportResult import_bag(const ImportOptions& options, std::FILE* report) {
@@ -731,6 +789,7 @@ ImportResult import_bag(const ImportOptions& options, std::FILE* report) {
   ImportResult result = options.kind == SessionKind::kMapping
                             ? import_mapping(options, plan, dir)
                             : import_calibration(options, plan, dir, report);
+  write_frames(options, plan, dir, report);
   dir.commit();
   return result;
 }

@@ -125,6 +125,8 @@ TEST(ImportRealBag, CalibrationKindAccumulatesTheBagsCloudsIntoOneView) {
   EXPECT_GT(t_max, 0.1f);
   EXPECT_LT(t_max, 0.3f);
   EXPECT_TRUE(core::preflight_problems(session).empty());
+  // The LIDAR's frame_id as the recording's driver set it, for rgbdt_calibrate's ROS outputs.
+  EXPECT_NE(test_util::read_text(out / "frames.yaml").find("\nlidar: hesai_lidar\n"), std::string::npos);
 }
 
 TEST(ImportRealBag, MappingKindWritesOneCloudPerMessage) {
@@ -337,6 +339,10 @@ TEST(ImportStillIntervals, KeepsLongStillRunsWithTheirCloudsAndMiddleFrames) {
     ASSERT_EQ(image.size(), truth.size());
     EXPECT_EQ(cv::norm(image, truth, cv::NORM_INF), 0.0) << "view " << v;
   }
+  // The bag's frame_ids, for rgbdt_calibrate's ROS outputs.
+  const std::string frames = test_util::read_text(out / "frames.yaml");
+  EXPECT_NE(frames.find("\nlidar: lidar\n"), std::string::npos) << frames;
+  EXPECT_NE(frames.find("\nrgb: camera\n"), std::string::npos) << frames;
 }
 
 TEST(ImportStillIntervals, MissingCameraInfoNamesTheSiblingTopic) {

@@ -57,6 +57,8 @@ constexpr char kDescription[] =
     "camera's frame nearest its middle as <camera>/NNN.png. One line per interval says whether\n"
     "it was kept and why not. Without --camera, the imported time range is one view (for\n"
     "rgbdt_calibrate --lidar-only).\n"
+    "Both kinds write frames.yaml: the LIDAR's and each camera's header.frame_id, which\n"
+    "rgbdt_calibrate names its ROS outputs' frames after (--frames overrides it).\n"
     "Times are header stamps (the log time when a stamp is 0). The session is written to a\n"
     "hidden sibling folder and renamed to --out at the end: a failed or interrupted import\n"
     "leaves no session behind. Progress goes to stderr at most once a second.\n"
