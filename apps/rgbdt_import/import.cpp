@@ -724,11 +724,17 @@ bool is_ros_frame_id(const std::string& frame) {
 // frames.yaml: the header.frame_id of the first message of the LIDAR's and of each camera's
 // image topic (in the time window), for rgbdt_calibrate's ROS outputs. An empty frame_id is
 // left out, and one with other characters than a ROS frame's is left out saying so; without
-// any, no file.
+// any, no file. Only topics known to hold a message in the window are read, so the reader
+// stops after their first messages instead of running through the bag again: the LIDAR's
+// (the import needs one), every camera's in a calibration (each view has a frame of each),
+// and in a mapping the cameras that wrote frames.
 void write_frames(const ImportOptions& options, const Plan& plan, const StagingDir& dir,
                   std::FILE* report) {
   std::map<std::string, std::string> sensor_of{{plan.lidar.name, "lidar"}};
-  for (const Camera& camera : plan.cameras) sensor_of[camera.image.name] = camera.source.name;
+  for (const Camera& camera : plan.cameras) {
+    if (options.kind == SessionKind::kMapping && camera.frames.empty()) continue;
+    sensor_of[camera.image.name] = camera.source.name;
+  }
   std::vector<std::string> topics;
   for (const auto& [topic, sensor] : sensor_of) topics.push_back(topic);
   std::map<std::string, std::string> frame_of;  // sensor -> frame_id

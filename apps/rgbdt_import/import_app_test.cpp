@@ -148,6 +148,7 @@ TEST(ImportRealBag, MappingKindWritesOneCloudPerMessage) {
     EXPECT_NEAR(index[i].time_s, clouds[i].first_time_ns * 1e-9, 1e-6) << "cloud " << i;
   }
   EXPECT_TRUE(core::preflight_problems(session).empty());
+  EXPECT_NE(test_util::read_text(out / "frames.yaml").find("\nlidar: hesai_lidar\n"), std::string::npos);
 }
 
 TEST(ImportErrors, MissingTopicExitsNonZeroNamingTopicAndBagAndLeavesNothing) {

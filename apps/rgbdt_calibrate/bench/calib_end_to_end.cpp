@@ -145,13 +145,13 @@ RunResult run_pipeline(const core::CalibrationSession& session,
       StageClock c(&r.stage[kOverlays]);
       for (std::size_t k = 0; k < views[name].size(); ++k) {
         const cv::Mat image = cv::imread(image_paths[name][k], cv::IMREAD_UNCHANGED);
-        const fs::path png =
+        const fs::path overlay =
             out_dir / ("overlay_" + name + "_" + std::to_string(k) + rgbdt::calibrate::kOverlayExtension);
-        if (!cv::imwrite(png.string(),
+        if (!cv::imwrite(overlay.string(),
                          ext::draw_overlay(image, views[name][k], camera, result.T_camera_lidar_initial,
                                            result.T_camera_lidar),
                          rgbdt::calibrate::kOverlayJpegParams))
-          r.problem += png.string() + ": cannot write; ";
+          r.problem += overlay.string() + ": cannot write; ";
       }
     }
     if (!result.converged) r.problem += name + ": not converged; ";
