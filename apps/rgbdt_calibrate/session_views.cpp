@@ -150,7 +150,8 @@ SessionDetections detect_session_views(const core::CalibrationSession& session,
           break;
         }
         sigmas.push_back(extrinsics::lidar_hole_sigma(h.edge_points, lidar.board_points, h.center, h.normal,
-                                                      session.target.radius_m));
+                                                      session.target.radius_m, h.edge_bias_m,
+                                                      lidar.point_spacing_m));
       }
       cv.hole_sigmas.push_back(std::move(sigmas));
       cv.lidar_detections.push_back(lidar);

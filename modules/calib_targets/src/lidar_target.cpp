@@ -464,6 +464,7 @@ struct BoardResult {
   std::vector<LidarHole> holes;
   std::string method;
   std::string profile;
+  double spacing_m = 0.0;
   double edge_bias_m = 0.0;
   std::string edge_bias_source = "none";
 };
@@ -847,6 +848,7 @@ BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>&
   }
   if (fell_back) res.method += "+occupancy";
   res.profile = describe_profile(g, has_ring, src, res.holes);
+  res.spacing_m = g.spacing;
   res.holes = row_major(std::move(res.holes), layout);
   res.ok = true;
   return res;
@@ -893,6 +895,7 @@ void take_board(const BoardResult& b, const std::vector<int>& board, const std::
   det->holes = b.holes;
   det->edge_method = b.method;
   det->cloud_profile = b.profile;
+  det->point_spacing_m = b.spacing_m;
   det->edge_bias_m = b.edge_bias_m;
   det->edge_bias_source = b.edge_bias_source;
   for (int i : board) det->board_points.push_back(pts[static_cast<std::size_t>(i)]);

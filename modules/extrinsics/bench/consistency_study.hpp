@@ -121,7 +121,8 @@ inline TargetView target_view(const calib_targets::LidarTargetDetection& lidar,
   v.image_height = size.height;
   for (const auto& h : lidar.holes) {
     v.lidar_circle_points.insert(v.lidar_circle_points.end(), h.circle_points.begin(), h.circle_points.end());
-    sigma->push_back(lidar_hole_sigma(h.edge_points, lidar.board_points, h.center, h.normal, target.radius_m));
+    sigma->push_back(lidar_hole_sigma(h.edge_points, lidar.board_points, h.center, h.normal, target.radius_m,
+                                      h.edge_bias_m, lidar.point_spacing_m));
   }
   for (const auto& h : image.holes)
     v.image_edge_points_px.insert(v.image_edge_points_px.end(), h.edge_points_px.begin(), h.edge_points_px.end());

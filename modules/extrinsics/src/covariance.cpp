@@ -108,7 +108,7 @@ core::Matrix6d pseudo_inverse(const core::Matrix6d& H, bool* full_rank) {
 LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
                                 const std::vector<Eigen::Vector3d>& board_points,
                                 const Eigen::Vector3d& center, const Eigen::Vector3d& normal,
-                                double radius_m) {
+                                double radius_m, double edge_bias_m, double point_spacing_m) {
   if (edge_points.size() < 3 || board_points.size() < 3) {
     std::ostringstream os;
     os << "lidar_hole_sigma: " << edge_points.size() << " edge points and " << board_points.size()
@@ -139,10 +139,20 @@ LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
   }
   const double n_used = static_cast<double>(std::max<std::size_t>(used, 1));
   const double scatter2 = std::max(0.0, sum2 - sum * sum / n_used);
-  const double sigma_e2 = scatter2 / std::max(1.0, n_used - 3.0);
+  const double spacing = std::max(0.0, point_spacing_m);
+  const double sigma_e2 = std::max(scatter2 / std::max(1.0, n_used - 3.0), spacing * spacing / 12.0);
+  // Independent stretches of edge: one per footprint (or point step) around the circle.
+  const double stretch = std::max(spacing, 2.0 * std::abs(edge_bias_m));
+  const double independent =
+      stretch > 0.0 ? std::clamp(2.0 * static_cast<double>(EIGEN_PI) * radius_m / stretch, 3.0, n_used) : n_used;
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig_m(M);
-  const double weakest = eig_m.eigenvalues()(0);
-  s.center_in_plane_m = weakest > 1e-9 ? std::sqrt(sigma_e2 / weakest) : radius_m;
+  const double weakest = eig_m.eigenvalues()(0) * independent / n_used;
+  // The footprint's systematic part (see the header).
+  const double range = center.norm();
+  const double sin_incidence =
+      range > 0.0 ? std::sqrt(std::max(0.0, 1.0 - std::pow(center.dot(n) / range, 2))) : 0.0;
+  const double footprint2 = std::pow(0.5 * edge_bias_m * sin_incidence, 2);
+  s.center_in_plane_m = weakest > 1e-9 ? std::sqrt(sigma_e2 / weakest + footprint2) : radius_m;
   // Board plane z = b0 + b1 u + b2 w in the hole's axes: offset at the centre and slopes.
   Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
   Eigen::Vector3d Atz = Eigen::Vector3d::Zero();
@@ -159,7 +169,7 @@ LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
   }
   const double sigma_z2 = z2 / std::max<double>(1.0, static_cast<double>(board_points.size()) - 3.0);
   const Eigen::Matrix3d C = sigma_z2 * AtA.inverse();
-  s.center_normal_m = std::sqrt(std::max(0.0, C(0, 0)));
+  s.center_normal_m = std::sqrt(std::max(0.0, C(0, 0)) + footprint2);
   s.tilt_rad = std::sqrt(std::max({0.0, C(1, 1), C(2, 2)}));
   return s;
 }

@@ -80,6 +80,47 @@ TEST(Covariance, LidarHoleSigmaFollowsTheNoise) {
               0.01 * s.center_in_plane_m);
 }
 
+// What the points' scatter cannot show. A beam footprint that measured an edge bias of 2 cm
+// on a board seen at 30 deg incidence adds 0.5 * 2 cm * sin(30 deg) = 0.5 cm in the plane
+// and along the normal; 360 edge points 1.75 mm apart on a 0.3 m hole count as one per
+// 4 cm stretch of edge (twice the bias: 47 of them), not 360; and edges that happen to lie
+// on the circle are still uncertain by the point spacing's quantisation (spacing / sqrt(12)).
+TEST(Covariance, LidarHoleSigmaKeepsTheFootprintAndTheSpacing) {
+  const Eigen::Vector3d n(-1, 0, 0);
+  const double incidence = 30.0 * M_PI / 180.0;
+  // The sensor at the origin sees the hole's centre 30 deg off the normal.
+  const Eigen::Vector3d c = 5.0 * Eigen::Vector3d(std::cos(incidence), std::sin(incidence), 0.0);
+  const Eigen::Vector3d a1(0, 1, 0), a2(0, 0, 1);
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 0.005);
+  std::vector<Eigen::Vector3d> edges, exact, board;
+  for (int i = 0; i < 360; ++i) {
+    const double th = 2 * M_PI * i / 360;
+    edges.push_back(c + (0.3 + noise(rng)) * (std::cos(th) * a1 + std::sin(th) * a2));
+    exact.push_back(c + 0.3 * (std::cos(th) * a1 + std::sin(th) * a2));
+  }
+  for (int i = 0; i < 20; ++i) {
+    for (int j = 0; j < 20; ++j) {
+      board.push_back(c + (-0.6 + 0.06 * i) * a1 + (-0.6 + 0.06 * j) * a2);
+    }
+  }
+  // Noise-free board: the normal's sigma is the footprint term alone.
+  const ext::LidarHoleSigma fp = ext::lidar_hole_sigma(exact, board, c, n, 0.3, 0.02, 0.0);
+  EXPECT_NEAR(fp.center_in_plane_m, 0.005, 1e-6);
+  EXPECT_NEAR(fp.center_normal_m, 0.005, 1e-6);
+  // Without a bias the same hole is judged by its scatter with all 360 points...
+  const ext::LidarHoleSigma all = ext::lidar_hole_sigma(edges, board, c, n, 0.3, 0.0, 0.0);
+  EXPECT_NEAR(all.center_in_plane_m, 0.005 * std::sqrt(2.0 / 360.0), 0.15 * 0.005 * std::sqrt(2.0 / 360.0));
+  // ... with it, by 2 pi 0.3 / 0.04 = 47.1 independent stretches (and the footprint term).
+  const ext::LidarHoleSigma capped = ext::lidar_hole_sigma(edges, board, c, n, 0.3, 0.02, 0.0);
+  const double stretches = 2 * M_PI * 0.3 / 0.04;
+  EXPECT_NEAR(capped.center_in_plane_m,
+              std::sqrt(std::pow(all.center_in_plane_m, 2) * 360.0 / stretches + 0.005 * 0.005), 1e-6);
+  // Exact edges 2 cm apart: spacing / sqrt(12) per point, 94 stretches of 2 cm.
+  const ext::LidarHoleSigma quantised = ext::lidar_hole_sigma(exact, board, c, n, 0.3, 0.0, 0.02);
+  EXPECT_NEAR(quantised.center_in_plane_m, 0.02 / std::sqrt(12.0) * std::sqrt(2.0 / (2 * M_PI * 0.3 / 0.02)), 1e-6);
+}
+
 // The systematic term is the linear propagation of the LIDAR circles' errors: perturb each
 // view's circle (centre and tilt) by draws of the stated sigma, re-solve against the true
 // image edges, and the solutions' NEES under the reported covariance must average 6.

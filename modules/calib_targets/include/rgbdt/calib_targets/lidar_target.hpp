@@ -117,6 +117,9 @@ struct LidarTargetDetection {
   /// What the detector measured to choose the method, e.g. "12034 board points, spacing
   /// 0.011 m, ring field, 3-5 lines across a hole".
   std::string cloud_profile;
+  /// Median distance between neighbouring board points in the board plane [m]: how far
+  /// the true edge may lie beyond the last board point before a hole.
+  double point_spacing_m = 0.0;
   double edge_bias_m = 0.0;       ///< the view's edge bias applied to every hole [m]
   std::string edge_bias_source;   ///< "measured on N hole(s)", "beam divergence model", "none"
 };

@@ -38,17 +38,29 @@ struct LidarHoleSigma {
   double tilt_rad = 0.0;           ///< of the normal, about each in-plane axis [rad]
 };
 
-/// The uncertainty of a detected hole from its detection: the in-plane centre from the
-/// edge points' scatter about the known-radius circle (RMS of |p - c| - r, which includes
-/// the beam-footprint widening) over their angular coverage, (sum_i u_i u_i^T)^-1 with u_i
-/// the in-plane radial directions; the normal offset at the centre and the tilt from the
-/// least-squares plane through the board points (their RMS distance to the plane is the
-/// LIDAR's range noise along the normal). Throws std::invalid_argument for fewer than 3
-/// edge points or 3 board points.
+/// The uncertainty of a detected hole from its detection.
+///
+/// In the plane, the centre's scatter part is sigma_e^2 (sum_i u_i u_i^T)^-1 (the larger
+/// axis) with u_i the in-plane radial directions of the edge points and sigma_e the scatter
+/// of |p - c| - r about its mean, never below the point spacing's quantisation
+/// (spacing^2 / 12: the edge lies anywhere within one step of the last board point). Edge
+/// points closer together than the beam footprint (twice the edge bias the view measured)
+/// or the point spacing see the same stretch of edge, so the count is capped at the number
+/// of such stretches around the hole. Along the normal: the offset at the centre and the
+/// tilt of the least-squares plane through the board points (their RMS distance to the
+/// plane is the range noise along the normal).
+///
+/// On top of both, the beam footprint's systematic part: a return whose footprint straddles
+/// an edge lies behind the board by a part of the footprint's depth spread, so the fitted
+/// plane and the edges on the side facing away from the sensor carry an offset that does
+/// not average out over points. It is modelled as 0.5 * edge_bias_m * sin(incidence) in the
+/// plane and along the normal (incidence between the beam to the centre, from the sensor at
+/// the origin, and the normal); docs/calibration.md shows where the 0.5 comes from. Throws
+/// std::invalid_argument for fewer than 3 edge points or 3 board points.
 LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
                                 const std::vector<Eigen::Vector3d>& board_points,
                                 const Eigen::Vector3d& center, const Eigen::Vector3d& normal,
-                                double radius_m);
+                                double radius_m, double edge_bias_m = 0.0, double point_spacing_m = 0.0);
 
 struct CovarianceOptions {
   /// Per input view of align_edges (same order), per hole (the order of the view's
