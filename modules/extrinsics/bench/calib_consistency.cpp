@@ -28,6 +28,10 @@ int main(int argc, char** argv) {
   app.add_option("--cases", cases, "number of simulated sessions (>= 50 for the issue's study)")->check(CLI::Range(1, 10000));
   app.add_option("--first-seed", first_seed, "seed of the first session");
   app.add_option("--tmp", tmp, "directory for the sessions (each removed after use)");
+  std::uint64_t only = 0;
+  app.add_option("--only", only,
+                 "run only the case with this seed (of the --cases from --first-seed), e.g. to look at one "
+                 "outlier again");
   CLI11_PARSE(app, argc, argv);
   rgbdt::core::set_log_level(rgbdt::core::LogLevel::kWarning);
 
@@ -36,6 +40,7 @@ int main(int argc, char** argv) {
               "verdict");
   std::vector<study::CaseResult> results;
   for (const study::Case& c : study::make_cases(cases, first_seed)) {
+    if (only != 0 && c.seed != only) continue;
     const study::CaseResult r = study::run_case(c, tmp);
     results.push_back(r);
     if (!r.ok) {
@@ -47,7 +52,7 @@ int main(int argc, char** argv) {
                 static_cast<unsigned long>(c.seed), c.views, c.holes, c.noise_scale, study::to_string(c.kind),
                 r.views_used, r.nees, r.nees_jacobian, r.err_rot_deg, r.sigma_rot_deg, r.err_trans_cm, r.sigma_trans_cm,
                 r.jackknife_used ? "yes" : "no", r.seconds, r.verdict.c_str(), r.verdict_reason.empty() ? "" : ": ",
-                r.verdict_reason.substr(0, 90).c_str());
+                r.verdict_reason.substr(0, only != 0 ? std::string::npos : 90).c_str());
     std::fflush(stdout);
   }
   const study::Summary s = study::summarize(results);

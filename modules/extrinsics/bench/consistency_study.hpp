@@ -78,7 +78,8 @@ struct CaseResult {
   double sigma_rot_deg = 0.0, sigma_trans_cm = 0.0;  ///< sqrt(trace) of the blocks (total)
   double sigma_rot_jac_deg = 0.0, sigma_trans_jac_cm = 0.0;
   bool jackknife_used = false;
-  /// judge_calibration's level ("PASS", "WARN", "FAIL") and, for a FAIL, its first reason.
+  /// judge_calibration's level ("PASS", "WARN", "FAIL") and its first FAIL reason, else its
+  /// first WARN reason.
   std::string verdict;
   std::string verdict_reason;
   double seconds = 0.0;
@@ -208,6 +209,8 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) 
         out.verdict_reason = reason.text;
         break;
       }
+    for (const auto& reason : v.reasons)
+      if (out.verdict_reason.empty() && reason.level == VerdictLevel::kWarn) out.verdict_reason = reason.text;
     out.ok = true;
   } catch (const std::exception& e) {
     out.reason = std::string("align_edges: ") + e.what();
