@@ -21,9 +21,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "rgbdt/core/extrinsics.hpp"
+#include "rgbdt/core/transform.hpp"
 #include "rgbdt/test/process.hpp"
 
 namespace rgbdt {
@@ -41,43 +43,77 @@ std::string read_all(const fs::path& path) {
   return ss.str();
 }
 
-TEST(ArtBpCalibration, MatchesTheAuthorsResult) {
-  // Skipped until the detectors find the target in these views (art_bp_detection_test.cpp);
-  // RGBDT_RUN_KNOWN_FAILURES=1 runs it.
-  if (const char* v = std::getenv("RGBDT_RUN_KNOWN_FAILURES"); v == nullptr || std::string(v) != "1") {
-    GTEST_SKIP() << "known failure: rgbdt_calibrate exits 2, 'camera rgb: not calibrated: the "
-                    "target was never found (LIDAR in 3 of 3 views, rgb image in 0)'";
-  }
+struct CalibrationRun {
+  std::string output;
+  bool exited_ok = false;
+  fs::path out;
+  Eigen::Isometry3d ours = Eigen::Isometry3d::Identity(), theirs = Eigen::Isometry3d::Identity();
+  std::optional<core::Matrix6d> covariance;
+};
+
+// rgbdt_calibrate once on the session (automatic detection everywhere), shared by the tests.
+const CalibrationRun& calibrate_once() {
+  static const CalibrationRun run = [] {
+    CalibrationRun r;
+    const fs::path session = ART_BP_SESSION_DIR;
+    r.out = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "art_bp_calibration";
+    fs::remove_all(r.out);
+    fs::create_directories(r.out);
+    const fs::path log = r.out.string() + ".log";
+    const auto t0 = std::chrono::steady_clock::now();
+    const pid_t pid = test::spawn_with_log(test::built_program("rgbdt_calibrate"),
+                                           {session.string(), "--out", r.out.string(), "--camera", "rgb",
+                                            "--seeds", "none"},
+                                           log);
+    int status = 0;
+    if (waitpid(pid, &status, 0) != pid) return r;
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    r.output = read_all(log);
+    std::printf("rgbdt_calibrate: %.2f s wall\n%s\n", seconds, r.output.c_str());
+    r.exited_ok = WIFEXITED(status) && WEXITSTATUS(status) == 0 && fs::exists(r.out / "extrinsics_rgb.yaml");
+    if (!r.exited_ok) return r;
+    const core::ExtrinsicsFrames frames{"rgb"};
+    const core::Extrinsics ours = core::read_extrinsics((r.out / "extrinsics_rgb.yaml").string(), frames);
+    r.ours = ours.T_parent_child;
+    r.covariance = ours.covariance;
+    r.theirs = core::read_extrinsics((session / "reference" / "extrinsics_rgb.yaml").string(), frames).T_parent_child;
+    return r;
+  }();
+  return run;
+}
+
+// What the data supports today: the image detector finds the board in the left and right
+// views (the mid view's right-hand holes are split by a white stripe behind them), so the
+// solve has two views of a 4-hole board. That is a usable but weak calibration: the verdict
+// must say WARN (not PASS), and its covariance must be honest: the authors' result inside
+// our 99.9 % ellipsoid (chi-square, 6 degrees of freedom: 22.46).
+TEST(ArtBpCalibration, TwoViewsAreWarnedAndTheirCovarianceHoldsTheAuthorsResult) {
   const fs::path session = ART_BP_SESSION_DIR;
   ASSERT_TRUE(fs::exists(session / "session.yaml"))
       << "missing " << session / "session.yaml" << ": run the fixture (ctest -R real_data_art_bp_session)";
-  const fs::path out = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "art_bp_calibration";
-  fs::remove_all(out);
-  fs::create_directories(out);
-  const fs::path log = out.string() + ".log";
+  const CalibrationRun& r = calibrate_once();
+  ASSERT_TRUE(r.exited_ok) << "rgbdt_calibrate failed:\n" << r.output << "\nreport.md:\n" << read_all(r.out / "report.md");
+  EXPECT_NE(r.output.find("verdict: WARN"), std::string::npos) << r.output;
+  ASSERT_TRUE(r.covariance.has_value()) << "extrinsics_rgb.yaml has no covariance";
+  const core::Vector6d d = core::to_vector6(r.ours) - core::to_vector6(r.theirs);
+  const double nees = d.dot(r.covariance->ldlt().solve(d));
+  std::printf("authors' result against our covariance: squared Mahalanobis %.2f (99.9 %%: 22.46)\n", nees);
+  EXPECT_LE(nees, 22.46);
+}
 
-  const auto t0 = std::chrono::steady_clock::now();
-  const pid_t pid = test::spawn_with_log(test::built_program("rgbdt_calibrate"),
-                                         {session.string(), "--out", out.string(), "--camera", "rgb",
-                                          "--seeds", "none"},
-                                         log);
-  int status = 0;
-  ASSERT_EQ(waitpid(pid, &status, 0), pid);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const std::string output = read_all(log);
-  std::printf("rgbdt_calibrate: %.2f s wall\n%s\n", seconds, output.c_str());
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
-      << "rgbdt_calibrate failed (status " << status << "):\n" << output << "\nreport.md:\n"
-      << read_all(out / "report.md");
-  ASSERT_TRUE(fs::exists(out / "extrinsics_rgb.yaml")) << output;
-
-  const core::ExtrinsicsFrames frames{"rgb"};
-  const Eigen::Isometry3d ours = core::read_extrinsics((out / "extrinsics_rgb.yaml").string(), frames).T_parent_child;
-  const Eigen::Isometry3d theirs =
-      core::read_extrinsics((session / "reference" / "extrinsics_rgb.yaml").string(), frames).T_parent_child;
+TEST(ArtBpCalibration, MatchesTheAuthorsResult) {
+  // Skipped until the detectors find the target in all three views (art_bp_detection_test.cpp:
+  // the mid view's image holes and its LIDAR plane); RGBDT_RUN_KNOWN_FAILURES=1 runs it.
+  if (const char* v = std::getenv("RGBDT_RUN_KNOWN_FAILURES"); v == nullptr || std::string(v) != "1") {
+    GTEST_SKIP() << "known failure: the target is found in 2 of the 3 images, and 2 views of the "
+                    "4-hole board leave the pose 2.7 deg and 12 cm from the authors' (within our "
+                    "reported uncertainty, see the test above)";
+  }
+  const CalibrationRun& r = calibrate_once();
+  ASSERT_TRUE(r.exited_ok) << r.output;
   const double rotation_deg =
-      Eigen::AngleAxisd(ours.linear() * theirs.linear().transpose()).angle() * 180.0 / M_PI;
-  const Eigen::Vector3d dt = ours.translation() - theirs.translation();
+      Eigen::AngleAxisd(r.ours.linear() * r.theirs.linear().transpose()).angle() * 180.0 / M_PI;
+  const Eigen::Vector3d dt = r.ours.translation() - r.theirs.translation();
   std::printf("against the authors: rotation %.3f deg, translation %.2f cm (dx %.2f dy %.2f dz %.2f cm)\n",
               rotation_deg, 100.0 * dt.norm(), 100.0 * dt.x(), 100.0 * dt.y(), 100.0 * dt.z());
   EXPECT_LT(rotation_deg, kRotationTolDeg);

@@ -70,10 +70,10 @@ bool run_known_failures() {
   if (!run_known_failures()) GTEST_SKIP() << "known failure (RGBDT_RUN_KNOWN_FAILURES=1 runs it): " << reason
 
 const char* const kImageDetectionFails =
-    "calib_targets::detect_target_in_image finds no 4-hole set in these 1920x1080 fisheye "
-    "images (left: 'hole 1: region growing gave 35 px, expected about 126'; mid: 'no set of 4 "
-    "holes matches the target's layout'; right: 'hole 1: region growing gave 0 px, expected "
-    "about 1338')";
+    "calib_targets::detect_target_in_image finds no 4-hole set in the mid view (a white stripe "
+    "behind the right-hand holes splits each of them in two, so neither the hole search nor "
+    "the board's own outlines give those holes whole): 'no set of 4 holes matches the "
+    "target's layout'";
 
 fs::path session_dir() { return fs::path(ART_BP_SESSION_DIR); }
 
@@ -238,7 +238,7 @@ TEST_P(ArtBpPose, ImageFindsTheFourHoles) {
   for (int k = 0; k < 4; ++k)
     std::printf("[%s] hole %d: ArUco (%s) puts it at [%.1f %.1f] px\n", kPoses[v], k,
                 aruco->dictionary.c_str(), aruco->holes_px[k].x(), aruco->holes_px[k].y());
-  SKIP_KNOWN_FAILURE(kImageDetectionFails);
+  if (v == 1) SKIP_KNOWN_FAILURE(kImageDetectionFails);
   const ct::ImageTargetDetection d = detect_image(s, v);
   ASSERT_TRUE(d.ok) << kPoses[v] << ": " << d.reason;
   ASSERT_EQ(d.holes.size(), 4u);

@@ -5,6 +5,7 @@
 #include <deque>
 #include <functional>
 #include <numeric>
+#include <Eigen/SVD>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -39,6 +40,7 @@ struct Candidate {
   cv::RotatedRect ellipse;
   double inside = 0.0, outside = 0.0;  ///< median levels of the hole and the board around it
   double score = 0.0;
+  bool board_side = false;  ///< found as a hole of the board (its inside need not be homogeneous)
 };
 
 /// Hole/board levels: median inside the ellipse shrunk to 0.7, and in the ring 1.3-1.7.
@@ -175,7 +177,8 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
 std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
                                     const std::vector<Candidate>& cand, const Eigen::Vector2d& up,
                                     std::string* reason, const std::optional<Eigen::Vector2d>& seed = {},
-                                    const Eigen::Vector2d& seed_board_half = Eigen::Vector2d::Zero()) {
+                                    const Eigen::Vector2d& seed_board_half = Eigen::Vector2d::Zero(),
+                                    double radius_m = 0.0, std::size_t pool_size = 9) {
   const std::size_t n = layout.size();
   if (cand.size() < n) {
     *reason = "found " + std::to_string(cand.size()) + " hole-like region(s), the target has " +
@@ -183,7 +186,7 @@ std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
     return {};
   }
   if (n == 1) return {0};
-  const std::size_t k = std::min<std::size_t>(cand.size(), 9);
+  const std::size_t k = std::min<std::size_t>(cand.size(), pool_size);
   double best = 1e18;
   std::vector<int> best_pick;
   std::vector<int> pick(n);
@@ -206,8 +209,23 @@ std::vector<int> match_layout_image(const std::vector<Eigen::Vector2d>& layout,
       const Eigen::MatrixXd A = M.colPivHouseholderQr().solve(P);
       const double rms = std::sqrt((M * A - P).squaredNorm() / static_cast<double>(n));
       const Eigen::Vector2d ax = A.row(0).transpose(), ay = A.row(1).transpose();
-      if (ay.dot(up) <= 0) return;  // board y must point up in the image
+      // Board y must point up in the image: within 45 deg of `up` (a 2-row layout's
+      // rotation by 90 deg fits its centres about as well as the right one).
+      if (ay.dot(up) <= std::sqrt(0.5) * ay.norm()) return;
       if (ax.x() * ay.y() - ax.y() * ay.x() >= 0) return;  // x right of y (image v is down)
+      if (radius_m > 0.0) {
+        // Each hole as large as the layout's scale makes a hole of the target's radius
+        // (within the spread a lens's distortion and the board's tilt give).
+        Eigen::Matrix2d L;
+        L << ax, ay;
+        const Eigen::JacobiSVD<Eigen::Matrix2d> svd(L);
+        const double expected = svd.singularValues()(0) * radius_m;
+        for (std::size_t i = 0; i < n; ++i) {
+          const auto& e = cand[static_cast<std::size_t>(pick[i])].ellipse;
+          const double a = 0.5 * std::max(e.size.width, e.size.height);
+          if (a < 0.7 * expected || a > 1.4 * expected) return;
+        }
+      }
       if (seed) {
         Eigen::Matrix2d L;
         L << ax, ay;
@@ -361,6 +379,15 @@ struct HoleSearch {
   double min_axis = 0.0, max_axis = 0.0;
 };
 
+/// Half the board's extents [m]: from the target's board size, else the layout's plus two radii.
+Eigen::Vector2d board_half_extent(const core::TargetSpec& target, const std::vector<Eigen::Vector2d>& layout) {
+  if (target.board_size_m) return 0.5 * *target.board_size_m;
+  Eigen::Vector2d half = Eigen::Vector2d::Zero();
+  for (const auto& h : layout) half = half.cwiseMax(h.cwiseAbs());
+  half.array() += 2.0 * target.radius_m;
+  return half;
+}
+
 /// A multi-hole board with a seed: the seed (anywhere on the board) picks the layout match
 /// that has it on the board; the candidates nearest the seed are tried first. False, with
 /// the reason, when none matches.
@@ -374,13 +401,9 @@ bool pick_layout_near_seed(const cv::Mat& f, const core::TargetSpec& target,
   };
   std::stable_sort(cand.begin(), cand.end(),
                    [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
-  Eigen::Vector2d half = Eigen::Vector2d::Zero();
-  for (const auto& h : search.layout) half = half.cwiseMax(h.cwiseAbs());
-  half.array() += 2.0 * target.radius_m;
-  if (target.board_size_m) half = 0.5 * *target.board_size_m;
   std::string why;
-  const auto pick =
-      match_layout_image(search.layout, cand, options.up_image.normalized(), &why, seed_px, half);
+  const auto pick = match_layout_image(search.layout, cand, options.up_image.normalized(), &why, seed_px,
+                                       board_half_extent(target, search.layout));
   if (pick.empty()) {
     *reason = why;
     return false;
@@ -588,11 +611,31 @@ void fit_hole_ellipse(ImageHole* hole) {
   }
 }
 
+std::vector<Eigen::Vector2d> board_side_edges(const cv::Mat& f, const Candidate& c,
+                                              const ImageDetectionOptions& options);
+
 /// Hole h of the target from candidate c: its region grown from `seed`, sub-pixel edges and
 /// ellipse. False, with the reason, when the region or its edges do not make a hole.
 bool trace_hole(const cv::Mat& f, const Candidate& c, std::size_t h, const Eigen::Vector2i& seed,
                 const ImageDetectionOptions& options, ImageHole* hole, std::string* reason) {
   const double contrast = std::abs(c.outside - c.inside);
+  if (c.board_side) {
+    hole->dark = c.inside < c.outside;
+    hole->contrast = contrast;
+    hole->edge_points_px = board_side_edges(f, c, options);
+    // At least half the outline, so that the ellipse rests on the hole all round.
+    const double circumference = kPi * 0.5 * (c.ellipse.size.width + c.ellipse.size.height);
+    if (static_cast<double>(hole->edge_points_px.size()) <
+        0.5 * std::clamp(2.0 * circumference / 2.0, 64.0, 720.0)) {
+      *reason = "hole " + std::to_string(h) + ": the board's edge around it is found on " +
+                std::to_string(hole->edge_points_px.size()) + " rays only";
+      return false;
+    }
+    fit_hole_ellipse(hole);
+    hole->center_px = Eigen::Vector2d(hole->ellipse.center.x, hole->ellipse.center.y);
+    for (const auto& p : hole->edge_points_px) hole->boundary_px.push_back(p.array().round().cast<int>());
+    return true;
+  }
   const double expected_area = kPi * 0.25 * c.ellipse.size.width * c.ellipse.size.height;
   const HoleRegion r = grow_hole_region(f, c, seed, options);
   hole->boundary_px = r.boundary_px;
@@ -615,6 +658,180 @@ bool trace_hole(const cv::Mat& f, const Candidate& c, std::size_t h, const Eigen
   return true;
 }
 
+/// Three rounds of "the board's edge around the candidate, the ellipse through it": the
+/// candidate becomes that ellipse; returns the fraction of rays whose edge point lies on it
+/// (0 when fewer than 30 % of the rays find the board's edge, or the levels fail).
+double refine_board_hole(const cv::Mat& f, const ImageDetectionOptions& o, Candidate* c) {
+  double support = 0.0;
+  for (int round = 0; round < 3; ++round) {
+    const double a = 0.5 * c->ellipse.size.width, b = 0.5 * c->ellipse.size.height;
+    const double rays = std::clamp(2.0 * kPi * std::max(a, b), 64.0, 720.0);
+    ImageHole hole;
+    hole.edge_points_px = board_side_edges(f, *c, o);
+    if (static_cast<double>(hole.edge_points_px.size()) < 0.3 * rays) return 0.0;
+    fit_hole_ellipse(&hole);
+    support = static_cast<double>(hole.edge_points_px.size()) / rays;
+    c->ellipse = hole.ellipse;
+    double spread = 0.0;
+    if (!levels(f, c->ellipse, &c->inside, &c->outside, &spread)) return 0.0;
+  }
+  return support;
+}
+
+/// Holes seen as the board's own holes: the inner outlines of large, homogeneous MSER
+/// regions (the board, bright or dark) that are ellipses of a plausible size. For holes
+/// whose inside is not homogeneous (a checkerboard or a door behind them), which the hole
+/// search (find_candidates) cannot take for holes; the board around them still is.
+std::vector<Candidate> find_board_hole_candidates(const cv::Mat& f, double min_axis_px, double max_axis_px,
+                                                  const ImageDetectionOptions& o) {
+  const int k = std::max(2, coarse_factor(min_axis_px));
+  cv::Mat coarse, u8;
+  if (k > 1) {
+    cv::resize(f, coarse, cv::Size(f.cols / k, f.rows / k), 0, 0, cv::INTER_AREA);
+  } else {
+    coarse = f;
+  }
+  coarse.convertTo(u8, CV_8U, 255.0);
+  const double k2 = static_cast<double>(k) * k;
+  // The board holds the holes: larger than a few of the smallest ones.
+  const double min_area = std::max(100.0, 4.0 * kPi * min_axis_px * min_axis_px / k2);
+  const double max_area = 0.8 * static_cast<double>(u8.total());
+  std::vector<Candidate> out;
+  for (int pass = 0; pass < 2; ++pass) {
+    const cv::Mat img = pass == 0 ? cv::Mat(255 - u8) : u8;  // bright boards first
+    auto mser = cv::MSER::create(5, static_cast<int>(min_area), static_cast<int>(max_area), 0.25);
+    std::vector<std::vector<cv::Point>> regions;
+    std::vector<cv::Rect> boxes;
+    mser->detectRegions(img, regions, boxes);
+    for (std::size_t ri = 0; ri < regions.size(); ++ri) {
+      const cv::Rect box = boxes[ri];
+      cv::Mat mask(box.height + 2, box.width + 2, CV_8U, cv::Scalar(0));
+      for (const cv::Point& p : regions[ri]) mask.at<uchar>(p.y - box.y + 1, p.x - box.x + 1) = 255;
+      std::vector<std::vector<cv::Point>> contours;
+      std::vector<cv::Vec4i> hierarchy;
+      cv::findContours(mask, contours, hierarchy, cv::RETR_CCOMP, cv::CHAIN_APPROX_NONE,
+                       cv::Point(box.x - 1, box.y - 1));
+      for (std::size_t ci = 0; ci < contours.size(); ++ci) {
+        if (hierarchy[ci][3] < 0 || contours[ci].size() < 12) continue;  // inner outlines only
+        // Bright parts of the background touching the edge join the board and bite into
+        // the hole's outline: its convex hull restores the outline around them.
+        std::vector<cv::Point> hull;
+        cv::convexHull(contours[ci], hull);
+        if (hull.size() < 6) continue;
+        const cv::RotatedRect ec = cv::fitEllipse(hull);
+        const double ac = 0.5 * std::max(ec.size.width, ec.size.height);
+        const double bc = 0.5 * std::min(ec.size.width, ec.size.height);
+        if (!(bc > 3.0)) continue;
+        // An ellipse, not a marker's square: every hull vertex within 12 % (and a pixel)
+        // of the fitted ellipse (a square's corners lie about 20 % outside it).
+        const double ang = ec.angle * kPi / 180.0;
+        bool elliptical = true;
+        for (const cv::Point& q : hull) {
+          const double dx = q.x - ec.center.x, dy = q.y - ec.center.y;
+          const double u = dx * std::cos(ang) + dy * std::sin(ang), v = -dx * std::sin(ang) + dy * std::cos(ang);
+          const double rho = std::sqrt(u * u / std::pow(0.5 * ec.size.width, 2) + v * v / std::pow(0.5 * ec.size.height, 2));
+          if (std::abs(rho - 1.0) > 0.12 + 1.0 / bc) {
+            elliptical = false;
+            break;
+          }
+        }
+        if (!elliptical) continue;
+        cv::RotatedRect e = ec;
+        e.center = cv::Point2f(static_cast<float>((ec.center.x + 0.5) * k - 0.5), static_cast<float>((ec.center.y + 0.5) * k - 0.5));
+        e.size = cv::Size2f(ec.size.width * static_cast<float>(k), ec.size.height * static_cast<float>(k));
+        const double a = ac * k, b = bc * k;
+        if (b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
+        if (e.center.x - 1.8 * a < 1 || e.center.y - 1.8 * a < 1 || e.center.x + 1.8 * a > f.cols - 2 ||
+            e.center.y + 1.8 * a > f.rows - 2) {
+          continue;
+        }
+        Candidate c;
+        c.ellipse = e;
+        c.board_side = true;
+        double spread = 0.0;
+        if (!levels(f, e, &c.inside, &c.outside, &spread)) continue;
+        const double contrast = std::abs(c.outside - c.inside);
+        // The board around the hole is homogeneous; the inside may be anything but the board.
+        if (contrast < o.min_contrast || spread > 0.35 * contrast) continue;
+        c.score = contrast / (spread + 0.02);
+        out.push_back(c);
+      }
+    }
+  }
+  // Each outline is a start: the board's edge around it (board_side_edges) fits the hole's
+  // ellipse, which gives the next start. A hole seen only in part (a piece of its outline)
+  // grows to the whole hole; the score is the fraction of rays whose edge lies on the final
+  // ellipse (within 1.5 px): most of them for a hole, few for anything else.
+  std::vector<Candidate> refined;
+  for (Candidate c : out) {
+    const double support = refine_board_hole(f, o, &c);
+    const double a = 0.5 * std::max(c.ellipse.size.width, c.ellipse.size.height);
+    const double b = 0.5 * std::min(c.ellipse.size.width, c.ellipse.size.height);
+    if (support < 0.6 || !(b > 0) || b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
+    c.score = support;
+    refined.push_back(c);
+  }
+  out = std::move(refined);
+  std::sort(out.begin(), out.end(), [](const Candidate& x, const Candidate& y) { return x.score > y.score; });
+  std::vector<Candidate> unique;
+  for (const Candidate& c : out) {
+    bool dup = false;
+    for (const Candidate& u : unique) {
+      const double d = std::hypot(c.ellipse.center.x - u.ellipse.center.x, c.ellipse.center.y - u.ellipse.center.y);
+      if (d < 0.5 * std::min(u.ellipse.size.width, u.ellipse.size.height)) dup = true;
+    }
+    if (!dup) unique.push_back(c);
+  }
+  return unique;
+}
+
+/// Edges of a hole found from the board's side: along rays from the candidate's centre,
+/// starting on the board (1.4 x the ellipse's radius in that direction) and walking
+/// inwards, the first crossing of the level midway between the board and the hole
+/// (linearly interpolated on the smoothed image). What lies inside the hole need not be
+/// homogeneous: the walk stops where the board ends. Rays that reach 0.6 of the radius
+/// without leaving the board (a bright part of the background right at the edge) give no
+/// point; fit_hole_ellipse drops those that stop early on the background's own structure.
+std::vector<Eigen::Vector2d> board_side_edges(const cv::Mat& f, const Candidate& c,
+                                              const ImageDetectionOptions& options) {
+  const double a = 0.5 * c.ellipse.size.width, b = 0.5 * c.ellipse.size.height;
+  const double reach = 1.6 * std::max(a, b) + 3.0;
+  cv::Rect roi(static_cast<int>(std::floor(c.ellipse.center.x - reach)),
+               static_cast<int>(std::floor(c.ellipse.center.y - reach)), static_cast<int>(std::ceil(2 * reach)) + 1,
+               static_cast<int>(std::ceil(2 * reach)) + 1);
+  roi &= cv::Rect(0, 0, f.cols, f.rows);
+  const cv::Mat smooth = smoothed(f, roi, options);
+  const bool board_brighter = c.outside > c.inside;
+  const double mid = 0.5 * (c.inside + c.outside);
+  const double ang = c.ellipse.angle * kPi / 180.0;
+  const int rays = std::clamp(static_cast<int>(2.0 * kPi * std::max(a, b)), 64, 720);
+  std::vector<Eigen::Vector2d> edges;
+  for (int i = 0; i < rays; ++i) {
+    const double th = 2.0 * kPi * i / rays;
+    // The ellipse's radius in this direction (its axes rotated by `ang`).
+    const double ct = std::cos(th - ang), st = std::sin(th - ang);
+    const double r = 1.0 / std::sqrt(ct * ct / (a * a) + st * st / (b * b));
+    const Eigen::Vector2d d(std::cos(th), std::sin(th));
+    const double step = 0.25;
+    double prev = 0.0;
+    bool have_prev = false;
+    for (double t = 1.4 * r; t >= 0.6 * r; t -= step) {
+      const double x = c.ellipse.center.x + t * d.x() - roi.x, y = c.ellipse.center.y + t * d.y() - roi.y;
+      if (x < 0 || y < 0 || x > smooth.cols - 2 || y > smooth.rows - 2) break;
+      const double cur = (bilinear(smooth, x, y) - mid) * (board_brighter ? 1.0 : -1.0);  // > 0 on the board
+      if (have_prev && prev > 0 && cur <= 0) {
+        const double t_cross = t + step * cur / (cur - prev);
+        edges.emplace_back(c.ellipse.center.x + t_cross * d.x(), c.ellipse.center.y + t_cross * d.y());
+        break;
+      }
+      if (!have_prev && cur <= 0) break;  // not on the board where the walk starts
+      prev = cur;
+      have_prev = true;
+    }
+  }
+  return edges;
+}
+
 /// Layout order -> row-major, top-left first (board y up, then x).
 std::vector<ImageHole> in_row_major_order(const std::vector<Eigen::Vector2d>& layout,
                                           const std::vector<ImageHole>& holes) {
@@ -627,6 +844,28 @@ std::vector<ImageHole> in_row_major_order(const std::vector<Eigen::Vector2d>& la
   std::vector<ImageHole> sorted;
   for (std::size_t k : order) sorted.push_back(holes[k]);
   return sorted;
+}
+
+/// Traces the chosen candidates into det's holes (row-major); false, with det->reason, when
+/// one of them does not make a hole.
+bool trace_holes(const cv::Mat& f, const std::vector<Candidate>& chosen, const HoleSearch& search,
+                 const std::optional<Eigen::Vector2d>& seed_px, const ImageDetectionOptions& options,
+                 ImageTargetDetection* det) {
+  for (std::size_t h = 0; h < chosen.size(); ++h) {
+    const Candidate& c = chosen[h];
+    // Algorithm 1 from the hole's centre (the automatic seed) or the clicked seed.
+    const Eigen::Vector2i seed =
+        seed_px && search.layout.size() == 1
+            ? Eigen::Vector2i(seed_px->array().round().cast<int>())
+            : Eigen::Vector2i(static_cast<int>(std::lround(c.ellipse.center.x)),
+                              static_cast<int>(std::lround(c.ellipse.center.y)));
+    ImageHole hole;
+    if (!trace_hole(f, c, h, seed, options, &hole, &det->reason)) return false;
+    det->holes.push_back(std::move(hole));
+  }
+  det->holes = in_row_major_order(search.layout, det->holes);
+  det->ok = true;
+  return true;
 }
 
 }  // namespace
@@ -659,22 +898,39 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
     }
   }
   std::vector<Candidate> chosen;
-  if (!choose_candidates(f, target, search, seed_px, options, &chosen, &det.reason)) return det;
-
-  for (std::size_t h = 0; h < chosen.size(); ++h) {
-    const Candidate& c = chosen[h];
-    // Algorithm 1 from the hole's centre (the automatic seed) or the clicked seed.
-    const Eigen::Vector2i seed =
-        seed_px && search.layout.size() == 1
-            ? Eigen::Vector2i(seed_px->array().round().cast<int>())
-            : Eigen::Vector2i(static_cast<int>(std::lround(c.ellipse.center.x)),
-                              static_cast<int>(std::lround(c.ellipse.center.y)));
-    ImageHole hole;
-    if (!trace_hole(f, c, h, seed, options, &hole, &det.reason)) return det;
-    det.holes.push_back(std::move(hole));
+  if (choose_candidates(f, target, search, seed_px, options, &chosen, &det.reason) &&
+      trace_holes(f, chosen, search, seed_px, options, &det)) {
+    return det;
   }
-  det.holes = in_row_major_order(search.layout, det.holes);
-  det.ok = true;
+  // The holes as holes of the board: for a textured background behind the holes.
+  const std::string first_reason = det.reason;
+  det.holes.clear();
+  chosen.clear();
+  std::vector<Candidate> cand = find_board_hole_candidates(f, search.min_axis, search.max_axis, options);
+  if (seed_px) {  // the candidates nearest the seed first, as for the hole search
+    const auto dist = [&](const Candidate& c) {
+      return std::hypot(c.ellipse.center.x - seed_px->x(), c.ellipse.center.y - seed_px->y());
+    };
+    std::stable_sort(cand.begin(), cand.end(), [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
+    // One hole: the seed must be in it (a seed on the background picks no hole).
+    if (search.layout.size() == 1) {
+      cand.erase(std::remove_if(cand.begin(), cand.end(),
+                                [&](const Candidate& c) { return dist(c) > 0.5 * std::min(c.ellipse.size.width, c.ellipse.size.height); }),
+                 cand.end());
+    }
+  }
+  std::string why;
+  const bool seeded_board = seed_px && search.layout.size() > 1;
+  const auto pick = match_layout_image(search.layout, cand, options.up_image.normalized(), &why,
+                                       seeded_board ? seed_px : std::nullopt,
+                                       seeded_board ? board_half_extent(target, search.layout) : Eigen::Vector2d::Zero(),
+                                       target.radius_m, 20);
+  for (int i : pick) chosen.push_back(cand[static_cast<std::size_t>(i)]);
+  if (pick.empty() || !trace_holes(f, chosen, search, seed_px, options, &det)) {
+    det.ok = false;
+    det.holes.clear();
+    det.reason = first_reason + "; as holes of the board: " + (pick.empty() ? why : det.reason);
+  }
   return det;
 }
 
