@@ -52,8 +52,9 @@ struct VerdictOptions {
   double lovo_fail_deg = 2.0;
   double lovo_fail_cm = 10.0;
   /// Leave-one-view-out: a view is named (WARN) when its removal moves the estimate beyond
-  /// the uncertainty of the estimate without it (squared Mahalanobis distance above the
-  /// 99 % quantile of chi-square with 6 degrees of freedom, 16.81) and by more than
+  /// the uncertainty of the estimate without it (its model covariance, without a jackknife
+  /// of its own; squared Mahalanobis distance above the 99 % quantile of chi-square with 6
+  /// degrees of freedom, 16.81) and by more than
   /// lovo_influence_ratio x the median move of all views (so a covariance that is too
   /// small does not name every view of a consistent session).
   double lovo_chi2_bound = 16.81;
