@@ -428,7 +428,9 @@ std::string write_camera_outputs(const Setup& setup, const std::string& name,
   core::write_file_atomic(csv_path, rgbdt::calibrate::format_detections_csv(rows));
   std::printf("  wrote %s\n", csv_path.c_str());
   for (size_t k = 0; k < cv.views.size(); ++k) {
-    const cv::Mat image = cv::imread(cv.image_paths[k], cv::IMREAD_UNCHANGED);
+    const cv::Mat image = k < cv.images.size() && !cv.images[k].empty()
+                              ? cv.images[k]
+                              : cv::imread(cv.image_paths[k], cv::IMREAD_UNCHANGED);
     if (image.empty())
       throw core::Error(cv.image_paths[k], "cannot read the image for the overlay");
     core::TempOutput overlay((out / overlay_name(name, cv.session_index[k])).string());

@@ -45,6 +45,7 @@ SessionDetections detect_session_views(const core::CalibrationSession& session,
   std::map<std::string, CameraViews>& out = result.cameras;
   for (const auto& [name, camera] : cameras) out[name].camera_name = name;
   const size_t n = session.views.size();
+  std::size_t kept_image_bytes = 0;  // decoded images kept for the overlays (kOverlayImageBudgetBytes)
   for (size_t i = 0; i < n; ++i) {
     if (stop && stop()) {
       result.stopped = true;
@@ -141,6 +142,10 @@ SessionDetections detect_session_views(const core::CalibrationSession& session,
       cv.views.push_back(make_target_view(lidar, det, session.target, image.size(), label));
       cv.session_index.push_back(static_cast<int>(i));
       cv.image_paths.push_back(image_it->second);
+      const std::size_t bytes = image.total() * image.elemSize();
+      const bool keep = kept_image_bytes + bytes <= kOverlayImageBudgetBytes;
+      cv.images.push_back(keep ? image : cv::Mat());
+      if (keep) kept_image_bytes += bytes;
       std::vector<extrinsics::LidarHoleSigma> sigmas;
       for (const auto& h : lidar.holes) {
         // Too few points to measure: leave the view to the covariance's default (an empty

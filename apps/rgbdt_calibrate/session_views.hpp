@@ -2,6 +2,7 @@
 // Glue between a calibration session on disk and the extrinsics module: loads each view's
 // cloud and images, runs the calib_targets detectors and turns the detections into
 // extrinsics::TargetView.
+#include <cstddef>
 #include <functional>
 #include <map>
 #include <string>
@@ -23,6 +24,9 @@ struct CameraViews {
   std::vector<extrinsics::TargetView> views;  ///< views where both detections succeeded
   std::vector<int> session_index;             ///< index of each view in the session
   std::vector<std::string> image_paths;       ///< image of each view
+  /// The decoded image of each view, kept for its overlay while all cameras' kept images
+  /// stay within kOverlayImageBudgetBytes; empty: read it again from image_paths.
+  std::vector<cv::Mat> images;
   /// LIDAR detection of each view (holes and method; board and edge points dropped).
   std::vector<calib_targets::LidarTargetDetection> lidar_detections;
   /// Per view, per LIDAR hole: the uncertainty of its circle from its own edge points and
@@ -47,6 +51,9 @@ struct SessionDetections {
 inline const std::vector<int> kOverlayJpegParams = {cv::IMWRITE_JPEG_QUALITY, 90};
 /// The overlays' extension.
 inline constexpr const char* kOverlayExtension = ".jpg";
+/// Decoded images kept from detection for the overlays, all cameras together (beyond it
+/// the overlays read their images again): 40 views of two 1288x964 RGB cameras.
+inline constexpr std::size_t kOverlayImageBudgetBytes = std::size_t{300} << 20;
 
 /// The view of the edge alignment from one view's LIDAR and image detections (both ok):
 /// every LIDAR circle point and image edge point, and the paired hole centres/ellipses for
