@@ -129,6 +129,7 @@ SessionDetections detect_session_views(const core::CalibrationSession& session,
       if (det.ok) {
         ++cv.image_found;
         os << det.holes.size() << " hole(s) found";
+        if (det.method != "hole regions") os << " as " << det.method << " (textured background)";
         if (!image_note.empty()) os << " (seed failed, automatic detection used)";
       } else {
         os << "target not found (" << det.reason << ")";

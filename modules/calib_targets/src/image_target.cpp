@@ -86,12 +86,8 @@ int coarse_factor(double min_axis_px) {
   return k;
 }
 
-/// Elliptical dark or bright blobs of a plausible size: MSER on the 8-bit normalised image
-/// downsampled by coarse_factor() (MSER's cost grows with the pixels; the hole is refined
-/// at full resolution afterwards), ellipses and levels in full-resolution pixels.
-std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, double max_axis_px,
-                                       const ImageDetectionOptions& o) {
-  const int k = coarse_factor(min_axis_px);
+/// f downsampled by k (area average) as 8-bit, for MSER.
+cv::Mat coarse_u8(const cv::Mat& f, int k) {
   cv::Mat coarse, u8;
   if (k > 1) {
     cv::resize(f, coarse, cv::Size(f.cols / k, f.rows / k), 0, 0, cv::INTER_AREA);
@@ -99,6 +95,39 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
     coarse = f;
   }
   coarse.convertTo(u8, CV_8U, 255.0);
+  return u8;
+}
+
+/// An MSER region's pixels as a mask over its box with a 1-pixel margin (so that its
+/// outline is closed); findContours then needs the offset (box.x - 1, box.y - 1).
+cv::Mat region_mask(const std::vector<cv::Point>& region, const cv::Rect& box) {
+  cv::Mat mask(box.height + 2, box.width + 2, CV_8U, cv::Scalar(0));
+  for (const cv::Point& p : region) mask.at<uchar>(p.y - box.y + 1, p.x - box.x + 1) = 255;
+  return mask;
+}
+
+/// Nested MSERs of one hole: the best-scoring candidate per centre, best first.
+std::vector<Candidate> best_per_centre(std::vector<Candidate> out) {
+  std::sort(out.begin(), out.end(), [](const Candidate& x, const Candidate& y) { return x.score > y.score; });
+  std::vector<Candidate> unique;
+  for (const Candidate& c : out) {
+    bool dup = false;
+    for (const Candidate& u : unique) {
+      const double d = std::hypot(c.ellipse.center.x - u.ellipse.center.x, c.ellipse.center.y - u.ellipse.center.y);
+      if (d < 0.5 * std::min(u.ellipse.size.width, u.ellipse.size.height)) dup = true;
+    }
+    if (!dup) unique.push_back(c);
+  }
+  return unique;
+}
+
+/// Elliptical dark or bright blobs of a plausible size: MSER on the 8-bit normalised image
+/// downsampled by coarse_factor() (MSER's cost grows with the pixels; the hole is refined
+/// at full resolution afterwards), ellipses and levels in full-resolution pixels.
+std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, double max_axis_px,
+                                       const ImageDetectionOptions& o) {
+  const int k = coarse_factor(min_axis_px);
+  const cv::Mat u8 = coarse_u8(f, k);
   const double k2 = static_cast<double>(k) * k;
   const double min_area = std::max(20.0, kPi * min_axis_px * min_axis_px * o.min_axis_ratio / k2);
   const double max_area = std::min(0.5 * static_cast<double>(u8.total()), kPi * max_axis_px * max_axis_px / k2);
@@ -116,8 +145,7 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
       if (reg.size() < 6) continue;
       // The region's outline (MSER pixel lists are not a boundary and may repeat pixels).
       const cv::Rect box = boxes[ri];
-      cv::Mat mask(box.height + 2, box.width + 2, CV_8U, cv::Scalar(0));
-      for (const cv::Point& p : reg) mask.at<uchar>(p.y - box.y + 1, p.x - box.x + 1) = 255;
+      const cv::Mat mask = region_mask(reg, box);
       const double area = cv::countNonZero(mask);
       std::vector<std::vector<cv::Point>> contours;
       cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, cv::Point(box.x - 1, box.y - 1));
@@ -156,18 +184,7 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
   core::log_debug("calib_targets: MSER regions ", stats[4], ", size ok ", stats[5], ", elliptical ",
                   stats[6], ", inside image ", stats[0], ", levels ", stats[1], ", contrast ", stats[2],
                   ", homogeneous ", stats[3]);
-  // Nested MSERs of one hole: keep the best-scoring one per centre.
-  std::sort(out.begin(), out.end(), [](const Candidate& x, const Candidate& y) { return x.score > y.score; });
-  std::vector<Candidate> unique;
-  for (const Candidate& c : out) {
-    bool dup = false;
-    for (const Candidate& u : unique) {
-      const double d = std::hypot(c.ellipse.center.x - u.ellipse.center.x, c.ellipse.center.y - u.ellipse.center.y);
-      if (d < 0.5 * std::min(u.ellipse.size.width, u.ellipse.size.height)) dup = true;
-    }
-    if (!dup) unique.push_back(c);
-  }
-  return unique;
+  return best_per_centre(std::move(out));
 }
 
 /// Chooses one candidate per layout hole: an affine map board -> image consistent with the
@@ -379,6 +396,14 @@ struct HoleSearch {
   double min_axis = 0.0, max_axis = 0.0;
 };
 
+/// The candidates nearest the seed first (stable: equally near ones keep their order).
+void sort_nearest_first(const Eigen::Vector2d& seed_px, std::vector<Candidate>* cand) {
+  const auto dist = [&](const Candidate& c) {
+    return std::hypot(c.ellipse.center.x - seed_px.x(), c.ellipse.center.y - seed_px.y());
+  };
+  std::stable_sort(cand->begin(), cand->end(), [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
+}
+
 /// Half the board's extents [m]: from the target's board size, else the layout's plus two radii.
 Eigen::Vector2d board_half_extent(const core::TargetSpec& target, const std::vector<Eigen::Vector2d>& layout) {
   if (target.board_size_m) return 0.5 * *target.board_size_m;
@@ -396,11 +421,7 @@ bool pick_layout_near_seed(const cv::Mat& f, const core::TargetSpec& target,
                            const ImageDetectionOptions& options, std::vector<Candidate>* chosen,
                            std::string* reason) {
   auto cand = find_candidates(f, search.min_axis, search.max_axis, options);
-  const auto dist = [&](const Candidate& c) {
-    return std::hypot(c.ellipse.center.x - seed_px.x(), c.ellipse.center.y - seed_px.y());
-  };
-  std::stable_sort(cand.begin(), cand.end(),
-                   [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
+  sort_nearest_first(seed_px, &cand);
   std::string why;
   const auto pick = match_layout_image(search.layout, cand, options.up_image.normalized(), &why, seed_px,
                                        board_half_extent(target, search.layout));
@@ -685,13 +706,7 @@ double refine_board_hole(const cv::Mat& f, const ImageDetectionOptions& o, Candi
 std::vector<Candidate> find_board_hole_candidates(const cv::Mat& f, double min_axis_px, double max_axis_px,
                                                   const ImageDetectionOptions& o) {
   const int k = std::max(2, coarse_factor(min_axis_px));
-  cv::Mat coarse, u8;
-  if (k > 1) {
-    cv::resize(f, coarse, cv::Size(f.cols / k, f.rows / k), 0, 0, cv::INTER_AREA);
-  } else {
-    coarse = f;
-  }
-  coarse.convertTo(u8, CV_8U, 255.0);
+  const cv::Mat u8 = coarse_u8(f, k);
   const double k2 = static_cast<double>(k) * k;
   // The board holds the holes: larger than a few of the smallest ones.
   const double min_area = std::max(100.0, 4.0 * kPi * min_axis_px * min_axis_px / k2);
@@ -705,8 +720,7 @@ std::vector<Candidate> find_board_hole_candidates(const cv::Mat& f, double min_a
     mser->detectRegions(img, regions, boxes);
     for (std::size_t ri = 0; ri < regions.size(); ++ri) {
       const cv::Rect box = boxes[ri];
-      cv::Mat mask(box.height + 2, box.width + 2, CV_8U, cv::Scalar(0));
-      for (const cv::Point& p : regions[ri]) mask.at<uchar>(p.y - box.y + 1, p.x - box.x + 1) = 255;
+      const cv::Mat mask = region_mask(regions[ri], box);
       std::vector<std::vector<cv::Point>> contours;
       std::vector<cv::Vec4i> hierarchy;
       cv::findContours(mask, contours, hierarchy, cv::RETR_CCOMP, cv::CHAIN_APPROX_NONE,
@@ -772,17 +786,7 @@ std::vector<Candidate> find_board_hole_candidates(const cv::Mat& f, double min_a
     refined.push_back(c);
   }
   out = std::move(refined);
-  std::sort(out.begin(), out.end(), [](const Candidate& x, const Candidate& y) { return x.score > y.score; });
-  std::vector<Candidate> unique;
-  for (const Candidate& c : out) {
-    bool dup = false;
-    for (const Candidate& u : unique) {
-      const double d = std::hypot(c.ellipse.center.x - u.ellipse.center.x, c.ellipse.center.y - u.ellipse.center.y);
-      if (d < 0.5 * std::min(u.ellipse.size.width, u.ellipse.size.height)) dup = true;
-    }
-    if (!dup) unique.push_back(c);
-  }
-  return unique;
+  return best_per_centre(std::move(out));
 }
 
 /// Edges of a hole found from the board's side: along rays from the candidate's centre,
@@ -900,6 +904,7 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
   std::vector<Candidate> chosen;
   if (choose_candidates(f, target, search, seed_px, options, &chosen, &det.reason) &&
       trace_holes(f, chosen, search, seed_px, options, &det)) {
+    det.method = "hole regions";
     return det;
   }
   // The holes as holes of the board: for a textured background behind the holes.
@@ -908,10 +913,10 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
   chosen.clear();
   std::vector<Candidate> cand = find_board_hole_candidates(f, search.min_axis, search.max_axis, options);
   if (seed_px) {  // the candidates nearest the seed first, as for the hole search
+    sort_nearest_first(*seed_px, &cand);
     const auto dist = [&](const Candidate& c) {
       return std::hypot(c.ellipse.center.x - seed_px->x(), c.ellipse.center.y - seed_px->y());
     };
-    std::stable_sort(cand.begin(), cand.end(), [&](const Candidate& a, const Candidate& b) { return dist(a) < dist(b); });
     // One hole: the seed must be in it (a seed on the background picks no hole).
     if (search.layout.size() == 1) {
       cand.erase(std::remove_if(cand.begin(), cand.end(),
@@ -930,6 +935,8 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
     det.ok = false;
     det.holes.clear();
     det.reason = first_reason + "; as holes of the board: " + (pick.empty() ? why : det.reason);
+  } else {
+    det.method = "holes of the board";
   }
   return det;
 }

@@ -138,6 +138,7 @@ TEST(ImageTarget, Thermal16BitBrightHoleWithBlur) {
   const cv::Mat img = render(s, cam, 7400.0, 7900.0, 1.5, 8.0, CV_16U, 2u);
   const auto det = ct::detect_target_in_image(img, paper_target(), cam);
   ASSERT_TRUE(det.ok) << det.reason;
+  EXPECT_EQ(det.method, "hole regions");
   EXPECT_FALSE(det.holes[0].dark);
   const auto err = edge_errors(s, cam, 0, det.holes[0].edge_points_px);
   EXPECT_LT(percentile(err, 0.95), 0.5);

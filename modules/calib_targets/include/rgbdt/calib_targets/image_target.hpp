@@ -59,6 +59,9 @@ struct ImageTargetDetection {
   bool ok = false;
   std::string reason;
   std::vector<ImageHole> holes;  ///< in layout order (row-major, top-left first)
+  /// How the holes were found: "hole regions" (homogeneous holes, Algorithm 1) or "holes of
+  /// the board" (the board's edge around holes whose background is textured).
+  std::string method;
 };
 
 /// Detects the target's hole(s). image: 8U or 16U, 1 or 3 channels, of the camera's size.
