@@ -427,7 +427,7 @@ ImportResult import_mapping(const ImportOptions& options, Plan& plan, StagingDir
     const fs::path index = dir / (camera.source.name + "/index.csv");
     core::write_time_index(index.string(), camera.frames);
     session.cameras[camera.source.name] = {(dir / (camera.source.name + ".yaml")).string(),
-                                           index.string(), std::nullopt};
+                                           index.string(), camera.source.radiometry};
     result.frames.emplace_back(camera.source.name, camera.frames.size());
   }
   core::write_mapping_session((dir / "session.yaml").string(), session);
@@ -706,6 +706,7 @@ ImportResult import_calibration(const ImportOptions& options, Plan& plan, Stagin
   for (const Camera& camera : plan.cameras) {
     session.cameras[camera.source.name].intrinsics =
         (dir / (camera.source.name + ".yaml")).string();
+    session.cameras[camera.source.name].radiometry = camera.source.radiometry;
   }
   core::write_calibration_session((dir / "session.yaml").string(), session);
   result.views = session.views.size();

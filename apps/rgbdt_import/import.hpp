@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "rgbdt/core/session.hpp"
+
 namespace rgbdt::import {
 
 enum class SessionKind { kCalibration, kMapping };
@@ -17,6 +19,8 @@ struct CameraSource {
   std::string topic;       ///< Image or CompressedImage topic
   std::string info_topic;  ///< CameraInfo topic; empty: the image topic's sibling camera_info
   std::string intrinsics;  ///< camera_info YAML file to copy instead of a CameraInfo topic
+  /// Counts -> kelvin of a thermal camera, written to session.yaml (a bag does not carry it).
+  std::optional<core::RadiometrySpec> radiometry;
 };
 
 struct ImportOptions {

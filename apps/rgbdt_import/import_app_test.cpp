@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -208,11 +209,76 @@ TEST(ImportErrors, CalibrationWithoutTargetIsRefused) {
   EXPECT_NE(run.output.find("--target"), std::string::npos) << run.output;
 }
 
+// Two bags: the real board bag (left) as the calibration and a second real board bag (right)
+// as the mapping, into OUT/calibration and OUT/mapping with the same topics.
+TEST(ImportTwoBags, WriteTheCalibrationAndTheMappingSession) {
+  const fs::path out = test::temp_path("rig");
+  const AppRun run = run_import(board_bag("left").string() + " " + board_bag("right").string() +
+                                    " --out " + out.string() + " --lidar /lidar_points --target " +
+                                    kBoardTarget,
+                                out.string() + ".log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const core::CalibrationSession calibration =
+      core::read_calibration_session((out / "calibration").string());
+  EXPECT_EQ(calibration.views.size(), 1u);
+  const core::MappingSession mapping = core::read_mapping_session((out / "mapping").string());
+  const auto clouds = core::read_time_index(mapping.lidar.clouds);
+  EXPECT_EQ(clouds.size(), bag_clouds(board_bag("right"), "/lidar_points").size());
+  EXPECT_TRUE(core::preflight_problems(calibration).empty());
+  EXPECT_TRUE(core::preflight_problems(mapping).empty());
+}
+
+// When the second bag cannot be read, the first bag's finished session goes too: a run leaves
+// both sessions or neither (and no OUT it made itself).
+TEST(ImportTwoBags, ASecondBagThatFailsLeavesNeitherSession) {
+  const fs::path dir = test::temp_dir("two");
+  const fs::path not_a_bag = dir / "drive.bag", out = dir / "rig";
+  test::write_text(not_a_bag, "not a bag\n");
+  AppRun run = run_import(board_bag("left").string() + " " + not_a_bag.string() + " --out " +
+                              out.string() + " --lidar /lidar_points --target " + kBoardTarget,
+                          dir / "run.log");
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  EXPECT_NE(run.output.find("drive.bag"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("no session was written"), std::string::npos) << run.output;
+  EXPECT_FALSE(fs::exists(out)) << run.output;
+  // An empty OUT given by the user stays, empty.
+  fs::create_directories(out);
+  run = run_import(board_bag("left").string() + " " + not_a_bag.string() + " --out " +
+                       out.string() + " --lidar /lidar_points --target " + kBoardTarget,
+                   dir / "run2.log");
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  EXPECT_TRUE(fs::is_directory(out) && fs::is_empty(out)) << run.output;
+  // A second bag that does not exist is found before the first is read.
+  run = run_import(board_bag("left").string() + " " + (dir / "nothere.bag").string() + " --out " +
+                       (dir / "rig2").string() + " --lidar /lidar_points --target " + kBoardTarget,
+                   dir / "run3.log");
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  EXPECT_NE(run.output.find("nothere.bag: does not exist"), std::string::npos) << run.output;
+  EXPECT_EQ(run.output.find("kept as view"), std::string::npos) << run.output;
+}
+
+TEST(ImportTwoBags, KindTimeWindowAndMissingTargetAreRefused) {
+  const std::string bags = board_bag("left").string() + " " + board_bag("right").string();
+  const fs::path out = test::temp_path("rig");
+  for (const auto& [extra, option] :
+       {std::pair{std::string(" --kind mapping --target ") + kBoardTarget, "--kind"},
+        std::pair{std::string(" --start 1 --target ") + kBoardTarget, "--start"},
+        std::pair{std::string(""), "--target"}}) {
+    const AppRun run = run_import(bags + " --out " + out.string() + " --lidar /lidar_points" + extra,
+                                  out.string() + ".log");
+    EXPECT_NE(run.exit_code, 0) << run.output;
+    EXPECT_LT(run.exit_code, 128) << run.output;
+    EXPECT_NE(run.output.find(option), std::string::npos) << run.output;
+    EXPECT_FALSE(fs::exists(out)) << run.output;
+  }
+}
+
 TEST(ImportHelp, ExplainsEveryOptionWithAnExample) {
   const AppRun run = run_import("--help", test::temp_path("help.log"));
   EXPECT_EQ(run.exit_code, 0);
   for (const char* option :
-       {"--out", "--kind", "--lidar", "--camera", "--camera-info", "--intrinsics", "--imu",
+       {"--out", "--kind", "--lidar", "--camera", "--camera-info", "--intrinsics", "--radiometry",
+        "--imu", "rgbdt_import board.bag drive.bag", "OUT/calibration",
         "--start", "--end", "--target", "--still-threshold", "--min-still-frames", "--still-camera",
         "--max-view-points", "Examples:", "rgbdt_import run.mcap"}) {
     EXPECT_NE(run.output.find(option), std::string::npos) << option;
@@ -356,6 +422,42 @@ TEST(ImportStillIntervals, MissingCameraInfoNamesTheSiblingTopic) {
   EXPECT_EQ(run.exit_code, 1) << run.output;
   EXPECT_NE(run.output.find("/other/image_raw/compressed is not in the bag"), std::string::npos)
       << run.output;
+}
+
+// --radiometry: written to session.yaml as given; a bad one is refused naming the option, the
+// camera and the fault, before the bag is read.
+TEST(ImportRadiometry, IsWrittenAsGivenAndABadOneIsRefused) {
+  const fs::path dir = test::temp_dir("work");
+  const fs::path bag = write_still_bag(dir / "still.bag");
+  const fs::path out = dir / "session";
+  AppRun run = run_import(bag.string() + " --out " + out.string() +
+                              " --kind mapping --lidar /points --camera "
+                              "thermal=/cam/image_raw --radiometry 'thermal={type: planck, "
+                              "R: 366545, B: 1428, F: 1, O: -342}'",
+                          out.string() + ".log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  const core::MappingSession session = core::read_mapping_session(out.string());
+  const auto& radiometry = session.cameras.at("thermal").radiometry;
+  ASSERT_TRUE(radiometry.has_value());
+  EXPECT_EQ(radiometry->type, "planck");
+  EXPECT_EQ(radiometry->parameters,
+            (std::map<std::string, double>{{"R", 366545}, {"B", 1428}, {"F", 1}, {"O", -342}}));
+  for (const auto& [spec, fault] :
+       {std::pair{"thermal={type: linear, kelvin_per_count: -3}", "kelvin_per_count"},
+        std::pair{"thermal={type: plank, R: 1}", "unknown type 'plank'"},
+        std::pair{"thermal={type: linear, kelvin_per_count: 0.1", "is not a YAML map"},
+        std::pair{"rgb={type: linear, kelvin_per_count: 0.1}", "camera rgb is not named"}}) {
+    const fs::path bad = test::temp_path("bad");
+    run = run_import(bag.string() + " --out " + bad.string() +
+                         " --kind mapping --lidar /points --camera "
+                         "thermal=/cam/image_raw --radiometry '" + spec + "'",
+                     bad.string() + ".log");
+    EXPECT_NE(run.exit_code, 0) << spec;
+    EXPECT_LT(run.exit_code, 128) << spec;
+    EXPECT_NE(run.output.find("--radiometry"), std::string::npos) << run.output;
+    EXPECT_NE(run.output.find(fault), std::string::npos) << run.output;
+    EXPECT_FALSE(fs::exists(bad));
+  }
 }
 
 // ---------------------------------------------------------------------------------------

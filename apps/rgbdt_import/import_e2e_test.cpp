@@ -11,8 +11,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <regex>
 #include <sstream>
+#include <tuple>
 
 #include "import_test_util.hpp"
 #include "rgbdt/core/extrinsics.hpp"
@@ -168,11 +170,21 @@ double json_number(const std::string& json, const std::string& key, const std::s
   return std::stod(m[1]);
 }
 
-// A 3 s mapping session through a bag, imported and mapped with the true calibration: trajectory
-// RMSE and thermal error within 10 % (floors 1 mm and 0.01 K) of rgbdt_mapper's on the original
-// session's clouds. The ground truth and the thermal camera's radiometry are not in a bag: they are
-// copied into the imported session. The ROS 2 writer sends rgb as a CompressedImage (the PNG's
-// bytes), the ROS 1 one as a raw Image.
+// The session's radiometry of `camera` as rgbdt_import's --radiometry value, NAME={type: ..}.
+std::string radiometry_option(const core::MappingSession& session, const std::string& camera) {
+  const core::RadiometrySpec& spec = *session.cameras.at(camera).radiometry;
+  std::ostringstream os;
+  os << std::setprecision(17) << camera << "={type: " << spec.type;
+  for (const auto& [key, value] : spec.parameters) os << ", " << key << ": " << value;
+  os << "}";
+  return os.str();
+}
+
+// A 3 s mapping session through a bag, imported (the thermal camera's radiometry, which a bag does
+// not carry, given with --radiometry) and mapped with the true calibration: trajectory RMSE and
+// thermal error within 10 % (floors 1 mm and 0.01 K) of rgbdt_mapper's on the original session's
+// clouds. The ground truth is not in a bag: it is copied into the imported session. The ROS 2
+// writer sends rgb as a CompressedImage (the PNG's bytes), the ROS 1 one as a raw Image.
 TEST_P(ImportEndToEnd, MappingThroughABagScoresAsTheOriginalSession) {
   RGBDT_SKIP_WITHOUT_NODE_FIXTURE(writer_missing());
   const fs::path dir = test::temp_dir("work");
@@ -185,15 +197,20 @@ TEST_P(ImportEndToEnd, MappingThroughABagScoresAsTheOriginalSession) {
   if (HasFailure()) return;
   const std::string rgb_topic =
       GetParam() == BagFormat::kRos1 ? "/rgb/image_raw" : "/rgb/image_raw/compressed";
+  const core::MappingSession original = core::read_mapping_session(sim.string());
   run = run_command(test::built_program("rgbdt_import") + " " + bag.string() + " --out " +
                         imported.string() + " --kind mapping --lidar /lidar/points --camera rgb=" +
-                        rgb_topic + " --camera thermal=/thermal/image_raw",
+                        rgb_topic + " --camera thermal=/thermal/image_raw --radiometry '" +
+                        radiometry_option(original, "thermal") + "'",
                     dir / "import.log");
   ASSERT_EQ(run.exit_code, 0) << run.output;
-  const core::MappingSession original = core::read_mapping_session(sim.string());
-  core::MappingSession from_bag = core::read_mapping_session(imported.string());
-  from_bag.cameras.at("thermal").radiometry = original.cameras.at("thermal").radiometry;
-  core::write_mapping_session((imported / "session.yaml").string(), from_bag);
+  const core::MappingSession from_bag = core::read_mapping_session(imported.string());
+  ASSERT_TRUE(from_bag.cameras.at("thermal").radiometry.has_value());
+  EXPECT_EQ(from_bag.cameras.at("thermal").radiometry->type,
+            original.cameras.at("thermal").radiometry->type);
+  EXPECT_EQ(from_bag.cameras.at("thermal").radiometry->parameters,
+            original.cameras.at("thermal").radiometry->parameters);
+  EXPECT_FALSE(from_bag.cameras.at("rgb").radiometry.has_value());
   fs::copy_file(sim / "ground_truth.yaml", imported / "ground_truth.yaml");
   fs::copy(sim / "ground_truth", imported / "ground_truth", fs::copy_options::recursive);
 
@@ -217,6 +234,92 @@ TEST_P(ImportEndToEnd, MappingThroughABagScoresAsTheOriginalSession) {
   expect_same_error(json_number(summaries[1], "p95", "thermal_error_k"),
                     json_number(summaries[0], "p95", "thermal_error_k"), 0.01,
                     "thermal error, p95 [K]");
+}
+
+// README's route from bags to a map in three commands: one rgbdt_import of the board's bag and
+// the drive's bag (ROS 1, by the ROS 1 Python libraries) with the same topics, rgbdt_calibrate of
+// OUT/calibration and rgbdt_mapper of OUT/mapping with that calibration. The calibration scores
+// as rgbdt_calibrate's on the original session, and the map made with it as the original mapping
+// session's made with the original's calibration (10 %, floors as above): the route loses
+// nothing against the sessions it came from.
+TEST(ImportReadmeRoute, TwoBagsToAMapInThreeCommands) {
+  const fs::path dir = test::temp_dir("work");
+  const fs::path sim_cal = dir / "sim_cal", sim_map = dir / "sim_map", rig = dir / "rig";
+  CommandRun run = run_command(test::built_program("rgbdt_sim") + " calibration --views 4 --seed 1 --out " +
+                                   sim_cal.string(),
+                               dir / "sim_cal.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  run = run_command(test::built_program("rgbdt_sim") + " mapping --out " + sim_map.string() +
+                        " --duration 3 --rgb-fps 2 --thermal-fps 4 --supersampling 1 -q",
+                    dir / "sim_map.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  for (const auto& [script, sim, bag] :
+       {std::tuple{"write_ros1_calibration_bag.py", sim_cal, dir / "board.bag"},
+        std::tuple{"write_ros1_bag.py", sim_map, dir / "drive.bag"}}) {
+    run = run_command(test_util::ros1_fixture(script) + " " + sim.string() + " " + bag.string(),
+                      fs::path(bag.string() + ".log"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+  }
+  const core::CalibrationSession original_cal = core::read_calibration_session(sim_cal.string());
+  const core::MappingSession original_map = core::read_mapping_session(sim_map.string());
+  const std::string yaml = read_text(sim_cal / "session.yaml");
+  const std::string target = yaml.substr(8, yaml.find('\n') - 8);
+
+  // 1. Both bags into rig/calibration and rig/mapping.
+  run = run_command(test::built_program("rgbdt_import") + " " + (dir / "board.bag").string() + " " +
+                        (dir / "drive.bag").string() + " --out " + rig.string() +
+                        " --lidar /lidar/points --camera rgb=/rgb/image_raw"
+                        " --camera thermal=/thermal/image_raw --intrinsics rgb=" +
+                        original_cal.cameras.at("rgb").intrinsics + " --intrinsics thermal=" +
+                        original_cal.cameras.at("thermal").intrinsics + " --radiometry '" +
+                        radiometry_option(original_map, "thermal") + "' --target '" + target + "'",
+                    dir / "import.log");
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_EQ(core::read_calibration_session((rig / "calibration").string()).views.size(),
+            original_cal.views.size());
+  // The ground truth is not in a bag; with it summary.json scores the map.
+  fs::copy_file(sim_map / "ground_truth.yaml", rig / "mapping" / "ground_truth.yaml");
+  fs::copy(sim_map / "ground_truth", rig / "mapping" / "ground_truth", fs::copy_options::recursive);
+
+  // 2. and 3., and the same on the original sessions.
+  for (const auto& [session, calib, map] :
+       {std::tuple{rig / "calibration", rig / "calib", rig / "mapping"},
+        std::tuple{sim_cal, dir / "calib_original", sim_map}}) {
+    const fs::path out = fs::path(calib.string() + "_map");
+    run = run_command(test::built_program("rgbdt_calibrate") + " " + session.string() + " --out " +
+                          calib.string() + (session == sim_cal ? " --seeds none" : ""),
+                      fs::path(calib.string() + ".log"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    run = run_command(test::built_program("rgbdt_mapper") + " " + map.string() + " --calib " +
+                          calib.string() + " --out " + out.string() + " --lidar clouds",
+                      fs::path(out.string() + ".log"));
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+  }
+  for (const std::string camera : {"rgb", "thermal"}) {
+    const Eigen::Isometry3d truth =
+        core::read_extrinsics((sim_cal / "true_calib" / ("extrinsics_" + camera + ".yaml")).string())
+            .T_parent_child;
+    const auto errors = [&](const fs::path& out) {
+      const Eigen::Isometry3d T =
+          core::read_extrinsics((out / ("extrinsics_" + camera + ".yaml")).string()).T_parent_child;
+      return std::pair{core::rotation_error_rad(T, truth) * 180.0 / M_PI,
+                       core::translation_error_m(T, truth)};
+    };
+    const auto [rotation_original, translation_original] = errors(dir / "calib_original");
+    const auto [rotation_rig, translation_rig] = errors(rig / "calib");
+    expect_same_error(rotation_rig, rotation_original, 0.01, camera + " rotation error [deg]");
+    expect_same_error(translation_rig, translation_original, 0.001,
+                      camera + " translation error [m]");
+  }
+  const std::string from_bags = read_text(rig / "calib_map" / "summary.json");
+  const std::string original = read_text(dir / "calib_original_map" / "summary.json");
+  expect_same_error(json_number(from_bags, "trajectory_rmse_m"),
+                    json_number(original, "trajectory_rmse_m"), 0.001, "trajectory RMSE [m]");
+  expect_same_error(json_number(from_bags, "mean", "thermal_error_k"),
+                    json_number(original, "mean", "thermal_error_k"), 0.01,
+                    "thermal error, mean [K]");
+  expect_same_error(json_number(from_bags, "p95", "thermal_error_k"),
+                    json_number(original, "p95", "thermal_error_k"), 0.01, "thermal error, p95 [K]");
 }
 
 INSTANTIATE_TEST_SUITE_P(Bag, ImportEndToEnd,
