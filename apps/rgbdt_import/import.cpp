@@ -430,6 +430,7 @@ ImportResult import_mapping(const ImportOptions& options, Plan& plan, StagingDir
                                            index.string(), camera.source.radiometry};
     result.frames.emplace_back(camera.source.name, camera.frames.size());
   }
+  if (plan.imu) session.imu = core::ImuStream{(dir / "imu.csv").string()};
   core::write_mapping_session((dir / "session.yaml").string(), session);
   result.clouds = clouds.size();
   return result;

@@ -79,7 +79,12 @@ TEST(ImportMcapFixture, SimMappingSessionRoundTripsThroughAnMcapWrittenByRos2Too
 
   test_util::expect_same_mapping_session(sim.string(), out.string());
 
-  // imu.csv: the samples the fixture wrote (OUT.mcap.imu.csv, time in ns), row for row.
+  // imu.csv, named by session.yaml for rgbdt_mapper: the samples the fixture wrote
+  // (OUT.mcap.imu.csv, time in ns), row for row.
+  const core::MappingSession session = core::read_mapping_session(out.string());
+  ASSERT_TRUE(session.imu.has_value());
+  EXPECT_EQ(fs::path(session.imu->samples), fs::absolute(out / "imu.csv"));
+  EXPECT_TRUE(session.imu->rotation_lidar_imu.isApprox(Eigen::Quaterniond::Identity()));
   std::string want_header, got_header;
   const auto want = read_csv(mcap.string() + ".imu.csv", &want_header);
   const auto got = read_csv(out / "imu.csv", &got_header);

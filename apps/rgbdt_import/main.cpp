@@ -54,8 +54,9 @@ constexpr char kDescription[] =
     "clouds/index.csv (time_s = the earliest point's time), <camera>/NNNNNN.png with\n"
     "<camera>/index.csv (time_s = header stamp), <camera>.yaml, session.yaml (with each\n"
     "--radiometry: a bag does not carry a thermal camera's counts -> kelvin), and with --imu\n"
-    "imu.csv (time_s,wx,wy,wz,ax,ay,az; rgbdt_mapper does not read IMU samples yet, so\n"
-    "session.yaml does not name it).\n"
+    "imu.csv (time_s,wx,wy,wz,ax,ay,az in the IMU's axes), named by session.yaml's imu entry:\n"
+    "rgbdt_mapper takes each tilt's rotation from its gyro. When the IMU's axes are not the\n"
+    "LIDAR's, give them as imu: {samples: imu.csv, rotation_lidar_imu: [qx, qy, qz, qw]}.\n"
     "--kind calibration finds the intervals where the board is held still: the first camera's\n"
     "(or --still-camera's) consecutive frames differ by less than --still-threshold; runs of at\n"
     "least --min-still-frames frames are kept. Each kept interval becomes a view: every LIDAR\n"
@@ -131,7 +132,8 @@ void add_options(CLI::App& app, Arguments& args) {
                  "(repeatable), e.g. \"thermal={type: linear, kelvin_per_count: 0.04, offset_k: "
                  "0}\" or {type: planck, R: .., B: .., F: .., O: ..}");
   app.add_option("--imu", options.imu_topic,
-                 "a sensor_msgs/Imu topic, written to imu.csv (mapping)");
+                 "a sensor_msgs/Imu topic, written to imu.csv and named by session.yaml "
+                 "(mapping; rgbdt_mapper uses its gyro)");
   args.start = app.add_option("--start", args.start_s,
                               "import from this many seconds after the bag's first message "
                               "(one bag only)");

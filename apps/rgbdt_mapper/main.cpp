@@ -60,6 +60,7 @@
 #include "rgbdt/core/yaml_util.hpp"
 #include "rgbdt/rgbdt_map/colorize.hpp"
 #include "rgbdt/rgbdt_map/export.hpp"
+#include "rgbdt/rgbdt_map/imu.hpp"
 #include "rgbdt/rgbdt_map/registration.hpp"
 #include "rgbdt/rgbdt_map/render.hpp"
 #include "rgbdt/rgbdt_map/trajectory.hpp"
@@ -415,6 +416,7 @@ struct MapperOptions {
   int max_clouds = 0;
   std::string motion_prior;
   bool accurate = false;
+  bool no_imu = false;
   /// The registration's parameters given on the command line; each replaces the default (or
   /// --accurate's value) only when its option was given.
   RegistrationOptions reg_given;
@@ -454,6 +456,10 @@ void add_options(CLI::App& app, MapperOptions* o) {
          "seeds its registration instead of the constant-velocity guess. Must cover the session's "
          "time.")
       ->check(CLI::ExistingFile);
+  app.add_flag("--no-imu", o->no_imu,
+               "map without the session's IMU (session.yaml's imu: {samples: imu.csv}, as "
+               "rgbdt_import --imu writes it), whose gyro otherwise gives each tilt's rotation for "
+               "its de-skew and its registration's guess");
   app.add_option(
          "--lidar", o->lidar_source,
          "LIDAR input: rawlog (lidar.rawlog + tilt_rig.yaml through the assembler), clouds (the "
@@ -528,6 +534,7 @@ struct SessionInputs {
   std::string radiometry_text;  ///< that radiometry, described
   std::vector<core::TimedFile>
       cloud_index;  ///< --lidar clouds: the first --max-clouds of the index
+  std::string imu_used;  ///< the IMU samples whose gyro seeded the tilts, or empty
 };
 
 /// A camera's T_camera_lidar from --calib's extrinsics_<camera>.yaml, if readable and finite.
@@ -785,6 +792,40 @@ void use_motion_prior(const MapperOptions& options, const std::vector<TiltSource
   }
   std::printf("motion prior: %s (%zu poses)\n", motion_prior.c_str(), prior.size());
   odometry->set_motion_prior(std::move(prior));
+}
+
+/// The session's IMU, unless --no-imu or --motion-prior: its gyro's rotation de-skews and seeds
+/// each tilt (Odometry::set_rotation_prior). The samples must cover the clouds' time. Returns
+/// the samples' file, or "" when the IMU is not used.
+std::string use_imu(const MapperOptions& options, const core::MappingSession& session,
+                    const std::vector<TiltSource>& clouds, Odometry* odometry) {
+  if (!session.imu) return "";
+  const std::string& file = session.imu->samples;
+  if (options.no_imu || !options.motion_prior.empty()) {
+    std::printf("IMU: %s not used (%s)\n", file.c_str(),
+                options.no_imu ? "--no-imu" : "--motion-prior gives the motion");
+    return "";
+  }
+  const std::vector<ImuSample> samples = read_imu_csv(file);
+  if (samples.size() < 2 || samples.front().time_s > clouds.front().time_s ||
+      samples.back().time_s < clouds.back().time_s) {
+    throw core::Error(file, "covers " +
+                                (samples.empty() ? std::string("no time")
+                                                 : std::to_string(samples.front().time_s) + " - " +
+                                                       std::to_string(samples.back().time_s) + " s") +
+                                ", expected at least the clouds' " +
+                                std::to_string(clouds.front().time_s) + " - " +
+                                std::to_string(clouds.back().time_s) + " s (or map with --no-imu)");
+  }
+  const double span_s = samples.back().time_s - samples.front().time_s;
+  std::printf("IMU: %s (%zu samples, %.0f Hz): the gyro's rotation de-skews and seeds each tilt\n",
+              file.c_str(), samples.size(), double(samples.size() - 1) / span_s);
+  if (const double gap_s = largest_imu_gap_s(samples); gap_s > 0.05) {
+    std::printf("IMU: warning: samples %.3f s apart at most; the rotation across a gap assumes a "
+                "constant rate\n", gap_s);
+  }
+  odometry->set_rotation_prior(gyro_rotation_track(samples, session.imu->rotation_lidar_imu));
+  return file;
 }
 
 /// OUT: the completion marker of an earlier run goes first, then every file this run
@@ -1239,6 +1280,8 @@ std::string summary_json(const CLI::App& app, const MapperOptions& options,
   json << ",\n  \"trajectory_ate_m\": " << (score.ate ? json_number(*score.ate) : "null");
   json << ",\n  \"motion_prior\": "
        << (options.motion_prior.empty() ? std::string("null") : json_string(options.motion_prior));
+  json << ",\n  \"imu\": "
+       << (inputs.imu_used.empty() ? std::string("null") : json_string(inputs.imu_used));
   json << ",\n  \"thermal_error_k\": " << colouring.thermal_errors.json();
   json << ",\n  \"lidar_source\": \"" << inputs.lidar_source << "\"";
   json << ",\n  \"assembler\": " << lidar.assembler_json;
@@ -1297,6 +1340,7 @@ int map_session(const CLI::App& app, const MapperOptions& options) {
   const RegistrationOptions reg_options = registration_options(options);
   Odometry odometry(reg_options);
   use_motion_prior(options, clouds, &odometry);
+  inputs.imu_used = use_imu(options, inputs.session, clouds, &odometry);
   clear_outputs(run.out);
   RegistrationTotals totals;
   if (const std::optional<int> stopped = register_clouds(clouds, &odometry, &totals, &run))

@@ -157,11 +157,22 @@ struct MappingCommand {
         ->capture_default_str();
     cmd->add_option("--speed", options.trajectory.speed_m_s, "Cart speed [m/s]")
         ->capture_default_str();
+    cmd->add_option("--weave-amplitude", options.trajectory.weave_amplitude_m,
+                    "Sideways amplitude of the cart's weave [m]")
+        ->capture_default_str();
+    cmd->add_option("--weave-period", options.trajectory.weave_period_s,
+                    "Period of the cart's weave [s] (shorter: sharper turns)")
+        ->capture_default_str();
     cmd->add_option("--supersampling", options.supersampling, "N x N sub-samples per edge pixel")
         ->capture_default_str();
     cmd->add_flag("--night", night,
                   "Night: cool sky, warm walls, pavement that kept the day's heat");
     cmd->add_flag("--no-images", no_images, "LIDAR and trajectory only (fast)");
+    cmd->add_option("--imu-rate", options.imu.rate_hz,
+                    "IMU samples per second in imu.csv (a MEMS IMU in the LIDAR's axes: gyro "
+                    "0.014 deg/s/sqrt(Hz) and a 0.2 deg/s bias, accelerometer 175 ug/sqrt(Hz), "
+                    "times --noise); 0: no IMU")
+        ->capture_default_str();
   }
   void run(std::chrono::steady_clock::time_point t0) {
     options.time_of_day = night ? rgbdt::sim::TimeOfDay::kNight : rgbdt::sim::TimeOfDay::kDay;

@@ -213,6 +213,23 @@ CalibrationSession parse_calibration(const YAML::Node& document, const Where& w)
   return s;
 }
 
+ImuStream read_imu(const YamlField& imu, const Where& w) {
+  const std::string expected = "{samples: imu.csv, rotation_lidar_imu: [qx, qy, qz, qw]}";
+  imu.expect_map(expected);
+  ImuStream stream;
+  stream.samples = path_key(imu, "samples", w, "a CSV of IMU samples (time_s,wx,wy,wz,ax,ay,az)");
+  if (const auto q = imu.find("rotation_lidar_imu")) {
+    const std::vector<double> v = q->as_numbers(4, "a unit quaternion [qx, qy, qz, qw]");
+    const Eigen::Quaterniond rotation(v[3], v[0], v[1], v[2]);
+    if (std::abs(rotation.norm() - 1.0) > 1e-3) {
+      throw Error(w.yaml_path, "key 'imu.rotation_lidar_imu' has norm " + std::to_string(rotation.norm()) +
+                                   ", expected a unit quaternion [qx, qy, qz, qw]");
+    }
+    stream.rotation_lidar_imu = rotation.normalized();
+  }
+  return stream;
+}
+
 MappingSession parse_mapping(const YAML::Node& document, const Where& w) {
   const YamlField root(document, w.yaml_path);
   MappingSession s;
@@ -227,6 +244,7 @@ MappingSession parse_mapping(const YAML::Node& document, const Where& w) {
   }
   s.cameras = read_cameras(root, w, true);
   if (root.has("trajectory")) s.trajectory = path_key(root, "trajectory", w, "a CSV trajectory file");
+  if (const auto imu = root.find("imu")) s.imu = read_imu(*imu, w);
   return s;
 }
 
@@ -369,6 +387,9 @@ std::vector<std::string> preflight_problems(const MappingSession& s) {
   if (!s.trajectory.empty()) {
     if (auto p = file_problem(s.trajectory, "trajectory", "a CSV trajectory")) problems.push_back(*p);
   }
+  if (s.imu) {
+    if (auto p = file_problem(s.imu->samples, "imu.samples", "a CSV of IMU samples")) problems.push_back(*p);
+  }
   return problems;
 }
 
@@ -447,6 +468,16 @@ void write_mapping_session(const std::string& yaml_path, const MappingSession& s
   out << YAML::EndMap;
   emit_cameras(out, s.cameras, dir, true);
   if (!s.trajectory.empty()) out << YAML::Key << "trajectory" << YAML::Value << relative_to(dir, s.trajectory);
+  if (s.imu) {
+    out << YAML::Key << "imu" << YAML::Value << YAML::Flow << YAML::BeginMap;
+    out << YAML::Key << "samples" << YAML::Value << relative_to(dir, s.imu->samples);
+    if (!s.imu->rotation_lidar_imu.isApprox(Eigen::Quaterniond::Identity(), 1e-12)) {
+      const Eigen::Quaterniond& q = s.imu->rotation_lidar_imu;
+      out << YAML::Key << "rotation_lidar_imu" << YAML::Value << YAML::Flow << YAML::BeginSeq << q.x() << q.y()
+          << q.z() << q.w() << YAML::EndSeq;
+    }
+    out << YAML::EndMap;
+  }
   out << YAML::EndMap;
   save(yaml_path, out);
 }

@@ -1,5 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <fstream>
+#include <iterator>
+
 #include "rgbdt/core/error.hpp"
 #include "rgbdt/core/session.hpp"
 #include "rgbdt/test/test_util.hpp"
@@ -101,6 +105,44 @@ TEST(Session, MappingWriteThenReadRoundTrips) {
   EXPECT_EQ(back.cameras.at("thermal").frames, s.cameras.at("thermal").frames);
   EXPECT_DOUBLE_EQ(back.cameras.at("thermal").radiometry->parameters.at("offset_k"), 1.5);
   EXPECT_EQ(back.trajectory, s.trajectory);
+}
+
+// imu: {samples, rotation_lidar_imu}: written and read back; the rotation is left out of the
+// file when it is the identity, and must be a unit quaternion.
+TEST(Session, MappingImuRoundTripsAndItsRotationIsChecked) {
+  const auto dir = rgbdt::test::temp_dir("imu");
+  MappingSession s;
+  s.directory = dir.string();
+  s.lidar.clouds = (dir / "clouds/index.csv").string();
+  s.imu = ImuStream{(dir / "imu.csv").string()};
+  write_mapping_session((dir / "session.yaml").string(), s);
+  {
+    std::ifstream in(dir / "session.yaml");
+    const std::string text((std::istreambuf_iterator<char>(in)), {});
+    EXPECT_EQ(text.find("rotation_lidar_imu"), std::string::npos) << text;
+  }
+  MappingSession back = read_mapping_session(dir.string());
+  ASSERT_TRUE(back.imu.has_value());
+  EXPECT_EQ(back.imu->samples, s.imu->samples);
+  EXPECT_TRUE(back.imu->rotation_lidar_imu.isApprox(Eigen::Quaterniond::Identity()));
+  s.imu->rotation_lidar_imu = Eigen::Quaterniond(0.5, 0.5, -0.5, 0.5);
+  write_mapping_session((dir / "session.yaml").string(), s);
+  back = read_mapping_session(dir.string());
+  EXPECT_TRUE(back.imu->rotation_lidar_imu.isApprox(s.imu->rotation_lidar_imu, 1e-12));
+  EXPECT_FALSE(read_mapping_session(dir.string()).imu->samples.empty());
+  const std::vector<std::string> problems = preflight_problems(back);
+  EXPECT_TRUE(std::any_of(problems.begin(), problems.end(), [](const std::string& p) {
+    return p.find("imu.samples") != std::string::npos;
+  })) << "imu.csv does not exist";
+
+  write_text(dir / "session.yaml",
+             "lidar: {clouds: c.csv}\nimu: {samples: imu.csv, rotation_lidar_imu: [0, 0, 0, 2]}\n");
+  expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); },
+                               {"session.yaml", "imu.rotation_lidar_imu", "unit quaternion"});
+  write_text(dir / "session.yaml", "lidar: {clouds: c.csv}\nimu: {rotation_lidar_imu: [0, 0, 0, 1]}\n");
+  expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); }, {"session.yaml", "samples"});
+  write_text(dir / "session.yaml", "lidar: {clouds: c.csv}\nimu: imu.csv\n");
+  expect_error_mentions<Error>([&] { read_mapping_session(dir.string()); }, {"session.yaml", "imu"});
 }
 
 TEST(Session, MissingSessionFileIsReported) {

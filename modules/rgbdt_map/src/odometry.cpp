@@ -55,6 +55,13 @@ Eigen::Isometry3d velocity_between(const TimedPose& a, const TimedPose& b) {
   return core::from_vector6(twist_between(a, b));
 }
 
+/// The constant rate that, applied on the right over dt, turns rotation `from` into `to`.
+Eigen::Vector3d rotation_rate_between(const Eigen::Matrix3d& from, const Eigen::Matrix3d& to,
+                                      double dt) {
+  const Eigen::AngleAxisd residual(from.transpose() * to);
+  return residual.axis() * (residual.angle() / dt);
+}
+
 }  // namespace
 
 /// The local map: the last clouds in the world frame with their GICP covariances, and
@@ -191,7 +198,48 @@ void Odometry::set_motion_prior(Trajectory prior) {
   prior_ = std::move(prior);
 }
 
-/// One tilt on its way through add().
+void Odometry::set_rotation_prior(Trajectory rotations) {
+  if (rotations.empty()) {
+    throw std::invalid_argument("Odometry::set_rotation_prior: empty trajectory");
+  }
+  if (!trajectory_.empty()) {
+    throw std::logic_error("Odometry::set_rotation_prior: " + std::to_string(trajectory_.size()) +
+                           " clouds already added; set the prior before the first");
+  }
+  rotation_prior_ = std::move(rotations);
+}
+
+/// The gyro's rotation from time a to time b, in the LIDAR frame at a, with the learnt
+/// correction of its bias.
+Eigen::Matrix3d Odometry::gyro_rotation(double a_s, double b_s) const {
+  const Eigen::Vector3d correction = gyro_correction_ * (b_s - a_s);
+  const Eigen::Matrix3d raw =
+      rotation_prior_.pose_at(a_s).linear().transpose() * rotation_prior_.pose_at(b_s).linear();
+  if (correction.norm() == 0.0) return raw;
+  return raw * Eigen::AngleAxisd(correction.norm(), correction.normalized()).toRotationMatrix();
+}
+
+/// The gyro's bias from this registered tilt: the rate that turns the gyro's rotation since
+/// the previous tilt into the registered one, averaged over the tilts so far (over the last
+/// ~50 once there are more, so a slowly drifting bias is followed).
+void Odometry::learn_gyro_correction(const Step& step) {
+  const auto& poses = trajectory_.poses();
+  if (rotation_prior_.empty() || !prior_.empty() || poses.size() < 2 || !step.registered ||
+      !step.registration.converged) {
+    return;
+  }
+  const TimedPose& a = poses[poses.size() - 2];
+  const TimedPose& b = poses.back();
+  const double dt = b.time_s - a.time_s;
+  const Eigen::Matrix3d gyro =
+      rotation_prior_.pose_at(a.time_s).linear().transpose() * rotation_prior_.pose_at(b.time_s).linear();
+  const Eigen::Vector3d rate = rotation_rate_between(
+      gyro, a.T_world_lidar.linear().transpose() * b.T_world_lidar.linear(), dt);
+  ++gyro_correction_tilts_;
+  const double weight = 1.0 / std::min(gyro_correction_tilts_, 50);
+  gyro_correction_ += weight * (rate - gyro_correction_);
+}
+
 struct Odometry::Tilt {
   double time_s = 0.0;    ///< its first point's
   TimedPoints centroids;  ///< in the sensor frame
@@ -202,6 +250,19 @@ struct Odometry::Tilt {
   Eigen::Isometry3d deskewed_by = Eigen::Isometry3d::Identity();
   std::shared_ptr<Covariances> source_covariances;  ///< `source`'s, once computed
 };
+
+/// Centroids of the tilt that started at `time_s` de-skewed with `velocity` (per second,
+/// constant over the tilt), its rotation taken from the gyro when there is one.
+XyzCloud::Ptr Odometry::deskew(const TimedPoints& centroids, double time_s,
+                               const Eigen::Isometry3d& velocity) const {
+  if (rotation_prior_.empty() || !prior_.empty()) return deskew_points(centroids, velocity);
+  const core::Vector6d twist = core::to_vector6(velocity);
+  return deskew_points(centroids, [&](double tau_s) {
+    Eigen::Isometry3d T = core::from_vector6(twist * tau_s);
+    T.linear() = gyro_rotation(time_s, time_s + tau_s);
+    return T;
+  });
+}
 
 Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   check_next_cloud(cloud_time_s);
@@ -218,6 +279,7 @@ Odometry::Step Odometry::add(const cloud::Cloud& cloud, double cloud_time_s) {
   if (start_up_due()) smooth_start_up();
   if (window) refine_window();
   if (reanchoring_due()) reanchor_first_cloud();
+  learn_gyro_correction(step);
   step.registration.time_ms = ms_since(start);
   return step;
 }
@@ -275,7 +337,12 @@ Odometry::Tilt Odometry::prepare_tilt(const cloud::Cloud& cloud, double cloud_ti
           from.T_world_lidar * prior_.pose_at(from.time_s).inverse() * prior_.pose_at(cloud_time_s);
     }
   } else {
-    tilt.source = deskew_points(tilt.centroids, motion_per_s);
+    if (!rotation_prior_.empty() && !poses.empty()) {
+      const TimedPose& last = poses.back();
+      predicted.linear() =
+          last.T_world_lidar.linear() * gyro_rotation(last.time_s, cloud_time_s);
+    }
+    tilt.source = deskew(tilt.centroids, cloud_time_s, motion_per_s);
   }
   tilt.predicted = predicted;
   tilt.deskewed_by = motion_per_s;
@@ -319,21 +386,30 @@ void Odometry::register_second_cloud(Tilt& tilt, Step& step) {
   Eigen::Isometry3d velocity = Eigen::Isometry3d::Identity();
   for (int iteration = 0; iteration < kInitIterations; ++iteration) {
     auto map = std::make_shared<XyzCloud>();
-    pcl::transformPointCloud(*deskew_points(m.first_cloud, velocity), *map,
+    pcl::transformPointCloud(*deskew(m.first_cloud, first.time_s, velocity), *map,
                              first.T_world_lidar.matrix().cast<float>());
-    tilt.source = deskew_points(tilt.centroids, velocity);
+    tilt.source = deskew(tilt.centroids, tilt.time_s, velocity);
     const RegistrationResult r = register_clouds(tilt.source, map, step.T_world_lidar, options_);
     const double change = core::translation_error_m(r.T_target_source, step.T_world_lidar);
     step.registration = r;
     step.T_world_lidar = r.T_target_source;
     velocity = velocity_between(first, {tilt.time_s, step.T_world_lidar});
+    // With a gyro, its bias is part of the fixed point: the rate that turns its rotation
+    // into the registered one de-skews both clouds on the next pass.
+    if (!rotation_prior_.empty()) {
+      gyro_correction_ = Eigen::Vector3d::Zero();
+      gyro_correction_ = rotation_rate_between(gyro_rotation(first.time_s, tilt.time_s),
+                                               first.T_world_lidar.linear().transpose() *
+                                                   step.T_world_lidar.linear(),
+                                               tilt.time_s - first.time_s);
+    }
     if (iteration > 0 && change < 1e-3) break;
   }
   step.registered = true;
-  tilt.source = deskew_points(tilt.centroids, velocity);
+  tilt.source = deskew(tilt.centroids, tilt.time_s, velocity);
   tilt.deskewed_by = velocity;
   auto first_world = std::make_shared<XyzCloud>();
-  pcl::transformPointCloud(*deskew_points(m.first_cloud, velocity), *first_world,
+  pcl::transformPointCloud(*deskew(m.first_cloud, first.time_s, velocity), *first_world,
                            first.T_world_lidar.matrix().cast<float>());
   m.recent.front().points_world = first_world;
   if (options_.backend != IcpBackend::kPointToPoint) {
@@ -402,7 +478,7 @@ void Odometry::register_against_map(Tilt& tilt, Step& step) {
           options_.refine_above_m) {
     const Eigen::Isometry3d measured =
         velocity_between(trajectory_.poses().back(), {tilt.time_s, r.T_target_source});
-    tilt.source = deskew_points(tilt.centroids, measured);
+    tilt.source = deskew(tilt.centroids, tilt.time_s, measured);
     tilt.deskewed_by = measured;
     coarse = false;
     generalized ? run(m.gicp, r.T_target_source, r) : run(m.icp, r.T_target_source, r);

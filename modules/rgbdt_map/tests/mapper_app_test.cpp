@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -281,6 +282,54 @@ TEST(MapperApp, UsesAMotionPriorAndRejectsOneThatDoesNotCoverTheSession) {
   const std::string text((std::istreambuf_iterator<char>(log)), {});
   EXPECT_NE(text.find("short_prior.csv"), std::string::npos) << text;
   EXPECT_NE(text.find("expected at least the clouds'"), std::string::npos) << text;
+}
+
+// The session's IMU (rgbdt_sim --imu-rate: a MEMS gyro with a 0.2 deg/s bias and white noise):
+// on a street driven with sharp turns (a weave every 6 s at 1.5 m/s, ~5x the default's yaw
+// acceleration) the gyro's rotation within and between tilts cuts the drift. Measured on
+// seeds 1-3: aligned error (ATE) 8.7-9.8 cm LIDAR only, 2.6-2.9 cm with the gyro; a gyro read
+// in the wrong axes or with the wrong sign makes it worse than LIDAR only, not better. The
+// test asks for half. The IMU must cover the clouds: one that does not is refused naming it.
+TEST(MapperApp, UsesTheSessionsImuAndItCutsTheDriftOfSharpTurns) {
+  const char* bin = std::getenv("RGBDT_BIN_DIR");
+  ASSERT_NE(bin, nullptr) << "RGBDT_BIN_DIR is set by ctest";
+  const fs::path dir = fs::path(RGBDT_BINARY_DIR) / "test_tmp" / "MapperAppImu";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string sim = std::string(bin) + "/rgbdt_sim mapping --out " + (dir / "session").string() +
+                          " --duration 20 --no-images --imu-rate 200 --weave-period 6 --speed 1.5 --seed 1 > " +
+                          (dir / "sim.txt").string() + " 2>&1";
+  ASSERT_EQ(std::system(sim.c_str()), 0) << "see " << (dir / "sim.txt");
+  ASSERT_EQ(run_mapper(dir, "out_imu", "--lidar clouds"), 0) << read_text(dir / "out_imu.txt");
+  ASSERT_EQ(run_mapper(dir, "out_lidar_only", "--lidar clouds --no-imu"), 0)
+      << read_text(dir / "out_lidar_only.txt");
+  const std::string imu = read_text(dir / "out_imu/summary.json");
+  const std::string lidar_only = read_text(dir / "out_lidar_only/summary.json");
+  EXPECT_NE(imu.find("\"imu\": \"" + (dir / "session/imu.csv").string() + "\""), std::string::npos) << imu;
+  EXPECT_NE(lidar_only.find("\"imu\": null"), std::string::npos) << lidar_only;
+  EXPECT_NE(read_text(dir / "out_imu.txt").find("the gyro's rotation de-skews and seeds each tilt"),
+            std::string::npos);
+  EXPECT_NE(read_text(dir / "out_lidar_only.txt").find("not used (--no-imu)"), std::string::npos);
+  const double ate_imu = json_value(imu, "trajectory_ate_m");
+  const double ate_lidar_only = json_value(lidar_only, "trajectory_ate_m");
+  EXPECT_LT(ate_imu, 0.5 * ate_lidar_only) << imu << lidar_only;
+  std::printf("aligned trajectory error: %.4f m with the IMU, %.4f m LIDAR only\n", ate_imu, ate_lidar_only);
+
+  // An IMU that stops before the clouds do.
+  {
+    std::ifstream in(dir / "session/imu.csv");
+    std::ofstream out(dir / "session/imu_short.csv");
+    std::string line;
+    for (int i = 0; i < 400 && std::getline(in, line); ++i) out << line << '\n';
+  }
+  core::MappingSession session = core::read_mapping_session((dir / "session").string());
+  session.imu->samples = (dir / "session/imu_short.csv").string();
+  core::write_mapping_session((dir / "session/session.yaml").string(), session);
+  EXPECT_EQ(run_mapper(dir, "out_short", "--lidar clouds"), 1);
+  const std::string text = read_text(dir / "out_short.txt");
+  EXPECT_NE(text.find("imu_short.csv"), std::string::npos) << text;
+  EXPECT_NE(text.find("--no-imu"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(dir / "out_short/summary.json"));
 }
 
 // The simulator's street session as recorded: the raw MRPT rawlog goes through tilt_lidar's

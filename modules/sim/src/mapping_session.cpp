@@ -96,9 +96,50 @@ std::string MappingSessionOptions::validate() const {
   else if (supersampling < 1 || supersampling > 32) os << "supersampling " << supersampling << " must be in [1, 32]";
   else if (!(trajectory.speed_m_s >= 0.0) || !(trajectory.weave_period_s > 0.0)) os << "trajectory speed must be >= 0 and weave period > 0";
   else if (!(trajectory.start_time_s > 0.0)) os << "start time " << trajectory.start_time_s << " s must be positive (MRPT)";
+  else if (!(imu.rate_hz >= 0.0) || imu.rate_hz > 10000.0) os << "IMU rate " << imu.rate_hz << " Hz must be in [0, 10000]";
   else if (const std::string r = rig.validate(); !r.empty()) os << r;
   return os.str();
 }
+
+namespace {
+
+/// imu.csv of an IMU in the LIDAR's axes riding the cart from t0 to t1: the true angular rate
+/// (central difference of the rotation over 2 ms) and specific force (second difference of
+/// the position over 20 ms, minus gravity, in the IMU's axes), plus the noise of `imu`.
+void write_imu_samples(const std::string& path, const CartTrajectory& traj, double t0, double t1,
+                       const SimImu& imu, double noise_scale, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const Eigen::Vector3d gyro_bias =
+      noise_scale * imu.gyro_bias_sigma_rad_s * Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+  const double gyro_sigma = noise_scale * imu.gyro_noise_density * std::sqrt(imu.rate_hz);
+  const double accel_sigma = noise_scale * imu.accel_noise_density * std::sqrt(imu.rate_hz);
+  const Eigen::Vector3d gravity(0.0, 0.0, -9.80665);
+  std::ostringstream csv;
+  csv << "time_s,wx,wy,wz,ax,ay,az\n" << std::setprecision(15);
+  for (long k = 0;; ++k) {
+    const double t = t0 + static_cast<double>(k) / imu.rate_hz;
+    if (t > t1 + 1e-9) break;
+    constexpr double hr = 1e-3, hp = 1e-2;
+    const Eigen::Matrix3d R = traj.T_world_lidar(t).linear();
+    const Eigen::AngleAxisd turn(traj.T_world_lidar(t - hr).linear().transpose() *
+                                 traj.T_world_lidar(t + hr).linear());
+    Eigen::Vector3d w = turn.axis() * turn.angle() / (2.0 * hr);
+    const Eigen::Vector3d a = (traj.T_world_lidar(t + hp).translation() - 2.0 * traj.T_world_lidar(t).translation() +
+                               traj.T_world_lidar(t - hp).translation()) /
+                              (hp * hp);
+    Eigen::Vector3d f = R.transpose() * (a - gravity);
+    for (int i = 0; i < 3; ++i) {
+      w[i] += gyro_bias[i] + gyro_sigma * normal(rng);
+      f[i] += accel_sigma * normal(rng);
+    }
+    csv << t << ',' << w.x() << ',' << w.y() << ',' << w.z() << ',' << f.x() << ',' << f.y() << ',' << f.z()
+        << '\n';
+  }
+  detail::save_text(path, csv.str());
+}
+
+}  // namespace
 
 Scene make_street_scene(double length_m, TimeOfDay time_of_day, std::uint64_t seed) {
   const MaterialPresets m = material_presets(time_of_day);
@@ -232,8 +273,14 @@ MappingSessionResult write_mapping_session(const std::string& out_dir, const Map
     detail::save_text((dir / "ground_truth" / "trajectory.csv").string(), csv.str());
   }
 
+  if (options.imu.rate_hz > 0.0) {
+    write_imu_samples((dir / "imu.csv").string(), traj, t0, t1, options.imu, options.noise_scale,
+                      options.seed * 1000003 + 4);
+  }
+
   core::MappingSession session;
   session.directory = dir.string();
+  if (options.imu.rate_hz > 0.0) session.imu = core::ImuStream{(dir / "imu.csv").string()};
   session.lidar.rawlog = (dir / "lidar.rawlog").string();
   session.lidar.rig = (dir / "tilt_rig.yaml").string();
   session.lidar.clouds = (dir / "clouds" / "index.csv").string();

@@ -12,6 +12,7 @@
 /// finite, and no path naming a folder where a file is expected. They do not open the
 /// files a session names: preflight_problems() checks those, all at once.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <map>
 #include <optional>
 #include <string>
@@ -69,11 +70,20 @@ struct LidarStream {
   std::string rig;     ///< absolute path of tilt_rig.yaml (rgbdt/core/tilt_rig.hpp), or empty
 };
 
+/// An IMU beside the LIDAR: `imu: {samples: imu.csv, rotation_lidar_imu: [qx, qy, qz, qw]}`.
+struct ImuStream {
+  /// Absolute path of the CSV time_s,wx,wy,wz,ax,ay,az (rad/s, m/s^2, the IMU's axes).
+  std::string samples;
+  /// The IMU's axes in the LIDAR frame (optional in the file: identity, the axes agree).
+  Eigen::Quaterniond rotation_lidar_imu = Eigen::Quaterniond::Identity();
+};
+
 struct MappingSession {
   std::string directory;
   LidarStream lidar;
   std::map<std::string, CameraEntry> cameras;
   std::string trajectory;  ///< optional CSV of the cart trajectory (absolute), or empty
+  std::optional<ImuStream> imu;  ///< optional
 };
 
 /// True for names usable as file names: 1 to 64 characters of [A-Za-z0-9_-].

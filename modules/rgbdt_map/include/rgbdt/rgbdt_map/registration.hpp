@@ -25,6 +25,11 @@
 
 namespace rgbdt::rgbdt_map {
 
+namespace detail {
+struct TimedPoints;  ///< a tilt's voxel centroids with their times (odometry.cpp)
+}  // namespace detail
+
+
 enum class IcpBackend {
   kRobust,        ///< ours: GICP's plane-to-plane cost, Gauss-Newton with a Cauchy loss
   kGeneralized,   ///< pcl::GeneralizedIterativeClosestPoint (plane-to-plane)
@@ -242,6 +247,23 @@ class Odometry {
   /// Throws std::invalid_argument on an empty trajectory, std::logic_error after add().
   void set_motion_prior(Trajectory prior);
 
+  /// The LIDAR's rotation from a gyro (gyro_rotation_track): T_frame_lidar(t), of which
+  /// only the rotation is used. Each later tilt is de-skewed with the gyro's rotation
+  /// within it (and the constant-velocity translation), and registered from the rotation
+  /// the gyro measured since the previous cloud (with the constant-velocity translation).
+  /// A refined tilt is de-skewed again with the measured translation and the gyro's
+  /// rotation. Only relative rotations over a tilt are used, and the gyro's bias is learnt
+  /// as the tilts come: the mean rate by which the gyro's rotation between consecutive
+  /// tilts differs from the registered rotation corrects it (gyro_correction_rad_s). The
+  /// start-up, the windows and the re-anchoring run as without a prior. Ignored when a
+  /// motion prior is set. Call it before the first add().
+  /// Throws std::invalid_argument on an empty trajectory, std::logic_error after add().
+  void set_rotation_prior(Trajectory rotations);
+  /// The correction learnt for the gyro's bias (LIDAR axes; minus the bias) [rad/s], and
+  /// from how many registered tilts.
+  const Eigen::Vector3d& gyro_correction_rad_s() const { return gyro_correction_; }
+  int gyro_correction_tilts() const { return gyro_correction_tilts_; }
+
   /// Poses at each cloud's start time; between them, pose_at interpolates. With
   /// RegistrationOptions::reanchor_first_cloud, the poses that add() returned for the
   /// first local_map_clouds clouds are re-expressed once (a rigid motion of all of them),
@@ -289,6 +311,9 @@ class Odometry {
   RegistrationOptions options_;
   Trajectory trajectory_;
   Trajectory prior_;  ///< empty: LIDAR-only
+  Trajectory rotation_prior_;  ///< empty: no gyro; only used while prior_ is empty
+  Eigen::Vector3d gyro_correction_ = Eigen::Vector3d::Zero();
+  int gyro_correction_tilts_ = 0;
   std::unique_ptr<Impl> impl_;
   Reanchoring reanchoring_;
   StartUp start_up_;
@@ -299,6 +324,10 @@ class Odometry {
   void check_next_cloud(double cloud_time_s) const;
   void settle_robust_scale();
   Tilt prepare_tilt(const cloud::Cloud& cloud, double cloud_time_s) const;
+  Eigen::Matrix3d gyro_rotation(double a_s, double b_s) const;
+  void learn_gyro_correction(const Step& step);
+  XyzCloud::Ptr deskew(const detail::TimedPoints& centroids, double time_s,
+                       const Eigen::Isometry3d& velocity) const;
   void keep_for_start_up(const Tilt& tilt);
   Step register_tilt(Tilt& tilt);
   void register_second_cloud(Tilt& tilt, Step& step);

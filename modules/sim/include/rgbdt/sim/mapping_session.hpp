@@ -18,6 +18,7 @@
 ///                       materials), to score thermal colouring
 /// Times are seconds on one clock, starting at start_time_s.
 #include <Eigen/Geometry>
+#include <cmath>
 #include <cstdint>
 #include <string>
 
@@ -38,6 +39,16 @@ struct CartTrajectory {
   Eigen::Isometry3d T_world_lidar(double t) const;
 };
 
+/// An IMU in the LIDAR's axes (a MEMS part such as the BMI088): white noise per sample
+/// (noise density x sqrt(rate)) and a constant gyro bias drawn per seed, all times the
+/// session's noise multiplier.
+struct SimImu {
+  double rate_hz = 0.0;                         ///< 0: no IMU
+  double gyro_noise_density = 0.014 * M_PI / 180.0;  ///< [rad/s/sqrt(Hz)]
+  double gyro_bias_sigma_rad_s = 0.2 * M_PI / 180.0;
+  double accel_noise_density = 175e-6 * 9.80665;  ///< [m/s^2/sqrt(Hz)]
+};
+
 struct MappingSessionOptions {
   double duration_s = 10.0;
   std::uint64_t seed = 1;
@@ -47,6 +58,9 @@ struct MappingSessionOptions {
   bool write_images = true;
   CartTrajectory trajectory;
   RigSpec rig;                  ///< camera rates: rig.rgb_fps, rig.thermal_fps
+  /// imu.rate_hz > 0: imu.csv (time_s,wx,wy,wz,ax,ay,az from the true motion, noisy) named
+  /// by session.yaml's imu.
+  SimImu imu;
   std::string validate() const;
 };
 
