@@ -237,11 +237,11 @@ TEST_P(ImportEndToEnd, MappingThroughABagScoresAsTheOriginalSession) {
 }
 
 // README's route from bags to a map in three commands: one rgbdt_import of the board's bag and
-// the drive's bag (ROS 1, by the ROS 1 Python libraries) with the same topics, rgbdt_calibrate of
-// OUT/calibration and rgbdt_mapper of OUT/mapping with that calibration. The calibration scores
-// as rgbdt_calibrate's on the original session, and the map made with it as the original mapping
-// session's made with the original's calibration (10 %, floors as above): the route loses
-// nothing against the sessions it came from.
+// the drive's bag (ROS 1, by the ROS 1 Python libraries; the drive with an IMU) with the same
+// topics, rgbdt_calibrate of OUT/calibration and rgbdt_mapper of OUT/mapping with that
+// calibration. The calibration scores as rgbdt_calibrate's on the original session, and the map
+// made with it as the original mapping session's made with the original's calibration (10 %,
+// floors as above): the route loses nothing against the sessions it came from.
 TEST(ImportReadmeRoute, TwoBagsToAMapInThreeCommands) {
   const fs::path dir = test::temp_dir("work");
   const fs::path sim_cal = dir / "sim_cal", sim_map = dir / "sim_map", rig = dir / "rig";
@@ -250,7 +250,8 @@ TEST(ImportReadmeRoute, TwoBagsToAMapInThreeCommands) {
                                dir / "sim_cal.log");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   run = run_command(test::built_program("rgbdt_sim") + " mapping --out " + sim_map.string() +
-                        " --duration 3 --rgb-fps 2 --thermal-fps 4 --supersampling 1 -q",
+                        " --duration 3 --rgb-fps 2 --thermal-fps 4 --supersampling 1 -q"
+                        " --imu-rate 200",
                     dir / "sim_map.log");
   ASSERT_EQ(run.exit_code, 0) << run.output;
   for (const auto& [script, sim, bag] :
@@ -269,7 +270,7 @@ TEST(ImportReadmeRoute, TwoBagsToAMapInThreeCommands) {
   run = run_command(test::built_program("rgbdt_import") + " " + (dir / "board.bag").string() + " " +
                         (dir / "drive.bag").string() + " --out " + rig.string() +
                         " --lidar /lidar/points --camera rgb=/rgb/image_raw"
-                        " --camera thermal=/thermal/image_raw --intrinsics rgb=" +
+                        " --camera thermal=/thermal/image_raw --imu /imu/data --intrinsics rgb=" +
                         original_cal.cameras.at("rgb").intrinsics + " --intrinsics thermal=" +
                         original_cal.cameras.at("thermal").intrinsics + " --radiometry '" +
                         radiometry_option(original_map, "thermal") + "' --target '" + target + "'",
@@ -313,6 +314,12 @@ TEST(ImportReadmeRoute, TwoBagsToAMapInThreeCommands) {
   }
   const std::string from_bags = read_text(rig / "calib_map" / "summary.json");
   const std::string original = read_text(dir / "calib_original_map" / "summary.json");
+  // Both maps took each tilt's rotation from the IMU (the sim's, and its copy through the bag).
+  EXPECT_NE(from_bags.find("\"imu\": \"" + (rig / "mapping" / "imu.csv").string() + "\""),
+            std::string::npos)
+      << from_bags;
+  EXPECT_NE(original.find("\"imu\": \"" + (sim_map / "imu.csv").string() + "\""), std::string::npos)
+      << original;
   expect_same_error(json_number(from_bags, "trajectory_rmse_m"),
                     json_number(original, "trajectory_rmse_m"), 0.001, "trajectory RMSE [m]");
   expect_same_error(json_number(from_bags, "mean", "thermal_error_k"),
