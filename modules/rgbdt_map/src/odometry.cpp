@@ -240,6 +240,7 @@ void Odometry::learn_gyro_correction(const Step& step) {
   gyro_correction_ += weight * (rate - gyro_correction_);
 }
 
+/// One tilt on its way through add().
 struct Odometry::Tilt {
   double time_s = 0.0;    ///< its first point's
   TimedPoints centroids;  ///< in the sensor frame
@@ -397,11 +398,11 @@ void Odometry::register_second_cloud(Tilt& tilt, Step& step) {
     // With a gyro, its bias is part of the fixed point: the rate that turns its rotation
     // into the registered one de-skews both clouds on the next pass.
     if (!rotation_prior_.empty()) {
-      gyro_correction_ = Eigen::Vector3d::Zero();
-      gyro_correction_ = rotation_rate_between(gyro_rotation(first.time_s, tilt.time_s),
-                                               first.T_world_lidar.linear().transpose() *
-                                                   step.T_world_lidar.linear(),
-                                               tilt.time_s - first.time_s);
+      const Eigen::Matrix3d gyro = rotation_prior_.pose_at(first.time_s).linear().transpose() *
+                                   rotation_prior_.pose_at(tilt.time_s).linear();
+      gyro_correction_ = rotation_rate_between(
+          gyro, first.T_world_lidar.linear().transpose() * step.T_world_lidar.linear(),
+          tilt.time_s - first.time_s);
     }
     if (iteration > 0 && change < 1e-3) break;
   }
