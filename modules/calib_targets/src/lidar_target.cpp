@@ -1040,28 +1040,6 @@ std::vector<std::vector<int>> planar_segments(const std::vector<Vec3>& ds,
   return segments;
 }
 
-/// Planes found by RANSAC, largest first (at most 20), each split into Euclidean clusters:
-/// the segments region growing misses when range noise scatters the normals and a noisy
-/// board comes out in pieces.
-std::vector<std::vector<int>> ransac_segments(const std::vector<Vec3>& ds,
-                                              const LidarDetectionOptions& opt) {
-  const std::size_t min_ds_points = static_cast<std::size_t>(std::max(10, opt.min_board_points / 4));
-  std::vector<std::vector<int>> segments;
-  std::vector<int> rest(ds.size());
-  std::iota(rest.begin(), rest.end(), 0);
-  for (int k = 0; k < 20 && rest.size() >= min_ds_points; ++k) {
-    std::vector<int> in, out;
-    if (!sac_plane(ds, rest, opt.sac_distance_m, &in, &out) || in.size() < min_ds_points) break;
-    for (auto& cluster : clusters_of(ds, in, 3.0 * opt.search_voxel_m, static_cast<int>(min_ds_points))) {
-      segments.push_back(std::move(cluster));
-    }
-    rest = std::move(out);
-  }
-  std::sort(segments.begin(), segments.end(),
-            [](const auto& x, const auto& y) { return x.size() > y.size(); });
-  return segments;
-}
-
 /// The full-resolution points near a downsampled segment's plane, in its box grown by half
 /// the board (region growing may stop at a noisy part of the board); false when the
 /// segment is too small or too large for the board.
@@ -1097,41 +1075,23 @@ struct BestBoard {
   std::vector<int> board;  ///< indices into the points
   std::string last_reason = "no plane segment";
   std::size_t segments = 0;  ///< planar segments found
-  /// The range noise the segments measured: the median over them of the robust sigma of
-  /// their points about their re-fitted plane [m] (0: no segment to measure).
-  double plane_noise_m = 0.0;
 };
-
-/// The robust sigma (1.4826 x the median absolute distance) of pts[idx] about the
-/// least-squares plane of pts[fit] [m].
-double plane_noise(const std::vector<Vec3>& pts, const std::vector<int>& idx,
-                   const std::vector<int>& fit) {
-  const Eigen::Vector4d plane = fit_plane(pts, fit);
-  std::vector<double> d;
-  d.reserve(idx.size());
-  for (int i : idx) d.push_back(std::abs(plane.head<3>().dot(pts[static_cast<std::size_t>(i)]) + plane[3]));
-  return 1.4826 * median(std::move(d));
-}
 
 /// Planes of the cloud, largest first, found on a voxel-downsampled copy (for speed); each
 /// plane split into Euclidean segments whose full-resolution points are then re-fitted
 /// (Algorithm 2, line 6) and searched for the target's holes.
 BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSpec& target,
-                     const LidarDetectionOptions& opt, double board_half_diag,
-                     bool ransac = false) {
+                     const LidarDetectionOptions& opt, double board_half_diag) {
   const std::vector<Vec3>& pts = in.pts;
   const std::vector<Vec3> ds = voxel_downsample(pts, opt.search_voxel_m);
-  const std::vector<std::vector<int>> segments =
-      ransac ? ransac_segments(ds, opt) : planar_segments(ds, opt);
+  const std::vector<std::vector<int>> segments = planar_segments(ds, opt);
   BestBoard best;
   best.segments = segments.size();
-  std::vector<double> noise;
   for (const auto& seg : segments) {
     std::vector<int> full;
     if (!points_near_segment(pts, ds, seg, target, opt, board_half_diag, &full)) continue;
     std::vector<int> c;
     if (!sac_plane(pts, full, opt.refit_distance_m, &c, nullptr)) continue;
-    if (static_cast<int>(c.size()) >= opt.min_board_points) noise.push_back(plane_noise(pts, full, c));
     const BoardResult b = holes_on_board(pts, c, in.rings, has_ring, target, opt);
     if (b.ok) {
       core::log_debug("calib_targets: board with ", b.matched, " matched holes, score ", b.score);
@@ -1146,7 +1106,6 @@ BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSp
     core::log_debug("calib_targets: segment of ", c.size(), " points at ",
                     pts[static_cast<std::size_t>(c[0])].transpose(), ": ", b.reason);
   }
-  if (!noise.empty()) best.plane_noise_m = median(std::move(noise));
   return best;
 }
 
@@ -1261,53 +1220,19 @@ LidarTargetDetection detect_target_in_cloud(const cloud::Cloud& cloud, bool has_
     take_board(best.result, best.board, in.pts, &det);
     return det;
   }
-  // The board in pieces or its holes lost in the noise: up to three more tries, each a board
-  // search of its own, and every check on the board and its holes still applies.
-  struct Try {
-    LidarDetectionOptions options;
-    bool ransac;
-    std::string note;  ///< appended to the cloud profile when it finds the board
-  };
-  std::vector<Try> tries;
   // Noisy dense clouds: normals over a few 5 cm voxels scatter by more than the smoothness
   // threshold (2 cm noise over 12 neighbours ~10 cm apart: ~10 deg) and region growing splits
-  // the board: coarser voxels and twice the threshold.
+  // the board. One retry with coarser voxels and twice the threshold; every check on the
+  // board and its holes still applies.
   if (opt.search_voxel_m < 0.09) {
-    LidarDetectionOptions coarser = opt;
+    LidarDetectionOptions coarser = options;
     coarser.search_voxel_m = 2.0 * opt.search_voxel_m;
     coarser.smoothness_deg = 2.0 * opt.smoothness_deg;
-    tries.push_back({coarser, false, ""});
+    LidarTargetDetection again = detect_target_in_cloud(cloud, has_ring, target, coarser);
+    if (again.ok) return again;
   }
-  // Noisier than the re-fit band allows: a band of 2 cm keeps about half of a board with 3 cm
-  // range noise, whose holes then do not stand out from the gaps. The band the planes
-  // measured (2.5 x the median of their robust sigmas, at most the 2 x sac_distance_m their
-  // points were cut with) when it is wider, with region growing; then planes by RANSAC.
-  LidarDetectionOptions measured = opt;
-  const double band = std::min(2.5 * best.plane_noise_m, 2.0 * opt.sac_distance_m);
-  std::string band_note;
-  if (band > 1.25 * opt.refit_distance_m) {
-    measured.refit_distance_m = band;
-    std::ostringstream os;
-    os.precision(2);
-    os << std::fixed << "; the planes' range noise " << 100.0 * best.plane_noise_m
-       << " cm: re-fit band " << 100.0 * band << " cm instead of " << 100.0 * opt.refit_distance_m;
-    band_note = os.str();
-    tries.push_back({measured, false, band_note});
-  }
-  tries.push_back({measured, true, band_note + "; planes by RANSAC (region growing split them)"});
-  for (const Try& t : tries) {
-    const BestBoard again = best_board(in, has_ring, target, t.options, board_half_diag, t.ransac);
-    if (!again.result.ok) continue;
-    take_board(again.result, again.board, in.pts, &det);
-    det.cloud_profile += t.note;
-    return det;
-  }
-  std::ostringstream noise;
-  noise.precision(2);
-  noise << std::fixed << 100.0 * best.plane_noise_m;
   det.reason = "no board with the target's holes found among " + std::to_string(best.segments) +
-               " planar segments (last: " + best.last_reason + "; the planes' range noise " +
-               noise.str() + " cm)";
+               " planar segments (last: " + best.last_reason + ")";
   return det;
 }
 
