@@ -102,6 +102,27 @@ void expect_same_error(double from_bag, double original, double floor, const std
               from_bag, original, original > 0.0 ? from_bag / original : 1.0);
 }
 
+// Each camera's rotation and translation errors against the truth of `truth_calib`, of the
+// calibration in `from_bag` against the one in `original` (expect_same_error; floors 0.01 deg
+// and 1 mm).
+void expect_same_calibration_errors(const fs::path& truth_calib, const fs::path& from_bag,
+                                    const fs::path& original) {
+  for (const std::string camera : {"rgb", "thermal"}) {
+    const std::string file = "extrinsics_" + camera + ".yaml";
+    const Eigen::Isometry3d truth = core::read_extrinsics((truth_calib / file).string()).T_parent_child;
+    const auto errors = [&](const fs::path& out) {
+      const Eigen::Isometry3d T = core::read_extrinsics((out / file).string()).T_parent_child;
+      return std::pair{core::rotation_error_rad(T, truth) * 180.0 / M_PI,
+                       core::translation_error_m(T, truth)};
+    };
+    const auto [rotation_original, translation_original] = errors(original);
+    const auto [rotation_bag, translation_bag] = errors(from_bag);
+    expect_same_error(rotation_bag, rotation_original, 0.01, camera + " rotation error [deg]");
+    expect_same_error(translation_bag, translation_original, 0.001,
+                      camera + " translation error [m]");
+  }
+}
+
 // A calibration session of 4 views, as a bag of still intervals and moving gaps,
 // imported (the intervals become the views; the board and the camera_info YAML are given, as
 // a user gives them) and calibrated: each camera's rotation and translation errors against
@@ -140,22 +161,7 @@ TEST_P(ImportEndToEnd, CalibrationThroughABagScoresAsTheOriginalSession) {
                       fs::path(out.string() + ".log"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
   }
-  for (const std::string camera : {"rgb", "thermal"}) {
-    const Eigen::Isometry3d truth =
-        core::read_extrinsics((sim / "true_calib" / ("extrinsics_" + camera + ".yaml")).string())
-            .T_parent_child;
-    const auto errors = [&](const fs::path& out) {
-      const Eigen::Isometry3d T =
-          core::read_extrinsics((out / ("extrinsics_" + camera + ".yaml")).string()).T_parent_child;
-      return std::pair{core::rotation_error_rad(T, truth) * 180.0 / M_PI,
-                       core::translation_error_m(T, truth)};
-    };
-    const auto [rotation_original, translation_original] = errors(dir / "calib_original");
-    const auto [rotation_bag, translation_bag] = errors(dir / "calib_bag");
-    expect_same_error(rotation_bag, rotation_original, 0.01, camera + " rotation error [deg]");
-    expect_same_error(translation_bag, translation_original, 0.001,
-                      camera + " translation error [m]");
-  }
+  expect_same_calibration_errors(sim / "true_calib", dir / "calib_bag", dir / "calib_original");
 }
 
 // A number of summary.json: `"key": 1.5`, or inside `"outer": {... "key": 1.5`.
@@ -168,6 +174,17 @@ double json_number(const std::string& json, const std::string& key, const std::s
     return NAN;
   }
   return std::stod(m[1]);
+}
+
+// The trajectory RMSE and thermal error (mean, p95) of the map of summary.json `from_bag`
+// against those of `original` (expect_same_error; floors 1 mm and 0.01 K).
+void expect_same_map_errors(const std::string& from_bag, const std::string& original) {
+  expect_same_error(json_number(from_bag, "trajectory_rmse_m"),
+                    json_number(original, "trajectory_rmse_m"), 0.001, "trajectory RMSE [m]");
+  expect_same_error(json_number(from_bag, "mean", "thermal_error_k"),
+                    json_number(original, "mean", "thermal_error_k"), 0.01, "thermal error, mean [K]");
+  expect_same_error(json_number(from_bag, "p95", "thermal_error_k"),
+                    json_number(original, "p95", "thermal_error_k"), 0.01, "thermal error, p95 [K]");
 }
 
 // The session's radiometry of `camera` as rgbdt_import's --radiometry value, NAME={type: ..}.
@@ -226,14 +243,7 @@ TEST_P(ImportEndToEnd, MappingThroughABagScoresAsTheOriginalSession) {
     ASSERT_EQ(run.exit_code, 0) << run.output;
     summaries[k++] = read_text(out / "summary.json");
   }
-  expect_same_error(json_number(summaries[1], "trajectory_rmse_m"),
-                    json_number(summaries[0], "trajectory_rmse_m"), 0.001, "trajectory RMSE [m]");
-  expect_same_error(json_number(summaries[1], "mean", "thermal_error_k"),
-                    json_number(summaries[0], "mean", "thermal_error_k"), 0.01,
-                    "thermal error, mean [K]");
-  expect_same_error(json_number(summaries[1], "p95", "thermal_error_k"),
-                    json_number(summaries[0], "p95", "thermal_error_k"), 0.01,
-                    "thermal error, p95 [K]");
+  expect_same_map_errors(summaries[1], summaries[0]);
 }
 
 // README's route from bags to a map in three commands: one rgbdt_import of the board's bag and
@@ -296,22 +306,7 @@ TEST(ImportReadmeRoute, TwoBagsToAMapInThreeCommands) {
                       fs::path(out.string() + ".log"));
     ASSERT_EQ(run.exit_code, 0) << run.output;
   }
-  for (const std::string camera : {"rgb", "thermal"}) {
-    const Eigen::Isometry3d truth =
-        core::read_extrinsics((sim_cal / "true_calib" / ("extrinsics_" + camera + ".yaml")).string())
-            .T_parent_child;
-    const auto errors = [&](const fs::path& out) {
-      const Eigen::Isometry3d T =
-          core::read_extrinsics((out / ("extrinsics_" + camera + ".yaml")).string()).T_parent_child;
-      return std::pair{core::rotation_error_rad(T, truth) * 180.0 / M_PI,
-                       core::translation_error_m(T, truth)};
-    };
-    const auto [rotation_original, translation_original] = errors(dir / "calib_original");
-    const auto [rotation_rig, translation_rig] = errors(rig / "calib");
-    expect_same_error(rotation_rig, rotation_original, 0.01, camera + " rotation error [deg]");
-    expect_same_error(translation_rig, translation_original, 0.001,
-                      camera + " translation error [m]");
-  }
+  expect_same_calibration_errors(sim_cal / "true_calib", rig / "calib", dir / "calib_original");
   const std::string from_bags = read_text(rig / "calib_map" / "summary.json");
   const std::string original = read_text(dir / "calib_original_map" / "summary.json");
   // Both maps took each tilt's rotation from the IMU (the sim's, and its copy through the bag).
@@ -320,13 +315,7 @@ TEST(ImportReadmeRoute, TwoBagsToAMapInThreeCommands) {
       << from_bags;
   EXPECT_NE(original.find("\"imu\": \"" + (sim_map / "imu.csv").string() + "\""), std::string::npos)
       << original;
-  expect_same_error(json_number(from_bags, "trajectory_rmse_m"),
-                    json_number(original, "trajectory_rmse_m"), 0.001, "trajectory RMSE [m]");
-  expect_same_error(json_number(from_bags, "mean", "thermal_error_k"),
-                    json_number(original, "mean", "thermal_error_k"), 0.01,
-                    "thermal error, mean [K]");
-  expect_same_error(json_number(from_bags, "p95", "thermal_error_k"),
-                    json_number(original, "p95", "thermal_error_k"), 0.01, "thermal error, p95 [K]");
+  expect_same_map_errors(from_bags, original);
 }
 
 INSTANTIATE_TEST_SUITE_P(Bag, ImportEndToEnd,

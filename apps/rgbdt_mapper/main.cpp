@@ -768,6 +768,18 @@ void print_inputs(const SessionInputs& inputs, const std::vector<TiltSource>& cl
   std::printf("\n");
 }
 
+/// Throws naming `file` unless its `count` (>= 2) records from first_s to last_s cover the
+/// clouds' time; `hint` ends the message.
+void require_covers_clouds(const std::string& file, double first_s, double last_s, std::size_t count,
+                           const std::vector<TiltSource>& clouds, const std::string& hint) {
+  if (count >= 2 && first_s <= clouds.front().time_s && last_s >= clouds.back().time_s) return;
+  throw core::Error(file, "covers " +
+                              (count == 0 ? std::string("no time")
+                                          : std::to_string(first_s) + " - " + std::to_string(last_s) + " s") +
+                              ", expected at least the clouds' " + std::to_string(clouds.front().time_s) +
+                              " - " + std::to_string(clouds.back().time_s) + " s" + hint);
+}
+
 /// --motion-prior, when given: must cover the clouds' time; it then de-skews and seeds each tilt.
 void use_motion_prior(const MapperOptions& options, const std::vector<TiltSource>& clouds,
                       Odometry* odometry) {
@@ -779,17 +791,8 @@ void use_motion_prior(const MapperOptions& options, const std::vector<TiltSource
         "merged local map applies (the smooth start-up and windows are for LIDAR only)\n");
   }
   Trajectory prior = read_trajectory_csv(motion_prior);
-  if (prior.size() < 2 || prior.poses().front().time_s > clouds.front().time_s ||
-      prior.poses().back().time_s < clouds.back().time_s) {
-    throw core::Error(motion_prior,
-                      "covers " +
-                          (prior.empty() ? std::string("no time")
-                                         : std::to_string(prior.poses().front().time_s) + " - " +
-                                               std::to_string(prior.poses().back().time_s) + " s") +
-                          ", expected at least the clouds' " +
-                          std::to_string(clouds.front().time_s) + " - " +
-                          std::to_string(clouds.back().time_s) + " s");
-  }
+  require_covers_clouds(motion_prior, prior.empty() ? 0.0 : prior.poses().front().time_s,
+                        prior.empty() ? 0.0 : prior.poses().back().time_s, prior.size(), clouds, "");
   std::printf("motion prior: %s (%zu poses)\n", motion_prior.c_str(), prior.size());
   odometry->set_motion_prior(std::move(prior));
 }
@@ -807,16 +810,9 @@ std::string use_imu(const MapperOptions& options, const core::MappingSession& se
     return "";
   }
   const std::vector<ImuSample> samples = read_imu_csv(file);
-  if (samples.size() < 2 || samples.front().time_s > clouds.front().time_s ||
-      samples.back().time_s < clouds.back().time_s) {
-    throw core::Error(file, "covers " +
-                                (samples.empty() ? std::string("no time")
-                                                 : std::to_string(samples.front().time_s) + " - " +
-                                                       std::to_string(samples.back().time_s) + " s") +
-                                ", expected at least the clouds' " +
-                                std::to_string(clouds.front().time_s) + " - " +
-                                std::to_string(clouds.back().time_s) + " s (or map with --no-imu)");
-  }
+  require_covers_clouds(file, samples.empty() ? 0.0 : samples.front().time_s,
+                        samples.empty() ? 0.0 : samples.back().time_s, samples.size(), clouds,
+                        " (or map with --no-imu)");
   const double span_s = samples.back().time_s - samples.front().time_s;
   std::printf("IMU: %s (%zu samples, %.0f Hz): the gyro's rotation de-skews and seeds each tilt\n",
               file.c_str(), samples.size(), double(samples.size() - 1) / span_s);
