@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
   rgbdt::core::set_log_level(rgbdt::core::LogLevel::kWarning);
 
   std::printf("%4s %5s %5s %5s %-11s %4s | %8s %8s | %7s %7s %7s %7s | %5s %5s %s\n", "seed", "views", "holes",
-              "noise", "lidar", "used", "NEES", "NEES_J", "err_deg", "sig_deg", "err_cm", "sig_cm", "jk", "time",
+              "noise", "lidar", "used", "NEES", "NEES_J", "err_deg", "sig_deg", "err_cm", "sig_cm", "extra", "time",
               "verdict");
   std::vector<study::CaseResult> results;
   for (const study::Case& c : study::make_cases(cases, first_seed)) {
@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
     std::printf("%4lu %5d %5d %5.2f %-11s %4d | %8.2f %8.1f | %7.3f %7.3f %7.3f %7.3f | %5s %4.1fs %s%s%s\n",
                 static_cast<unsigned long>(c.seed), c.views, c.holes, c.noise_scale, study::to_string(c.kind),
                 r.views_used, r.nees, r.nees_jacobian, r.err_rot_deg, r.sigma_rot_deg, r.err_trans_cm, r.sigma_trans_cm,
-                r.jackknife_used ? "yes" : "no", r.seconds, r.verdict.c_str(), r.verdict_reason.empty() ? "" : ": ",
+                r.jackknife_used ? "jk" : r.resampled_used ? "rs" : "no", r.seconds, r.verdict.c_str(), r.verdict_reason.empty() ? "" : ": ",
                 r.verdict_reason.substr(0, only != 0 ? std::string::npos : 90).c_str());
     std::fflush(stdout);
   }

@@ -78,6 +78,7 @@ struct CaseResult {
   double sigma_rot_deg = 0.0, sigma_trans_cm = 0.0;  ///< sqrt(trace) of the blocks (total)
   double sigma_rot_jac_deg = 0.0, sigma_trans_jac_cm = 0.0;
   bool jackknife_used = false;
+  bool resampled_used = false;  ///< 1-2 views: re-solves on perturbed LIDAR circles
   /// judge_calibration's level ("PASS", "WARN", "FAIL") and its first FAIL reason, else its
   /// first WARN reason.
   std::string verdict;
@@ -200,6 +201,7 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) 
     out.sigma_rot_jac_deg = std::sqrt(J.topLeftCorner<3, 3>().trace()) * 180.0 / M_PI;
     out.sigma_trans_jac_cm = std::sqrt(J.bottomRightCorner<3, 3>().trace()) * 100.0;
     out.jackknife_used = r.covariance_terms.jackknife_used;
+    out.resampled_used = r.covariance_terms.resampled_used;
     VerdictOptions vo;
     vo.alignment = options;
     const CalibrationVerdict v = judge_calibration(views, camera, r, vo);

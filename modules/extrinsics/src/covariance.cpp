@@ -178,6 +178,7 @@ std::string CovarianceOptions::validate() const {
   std::ostringstream os;
   if (!(default_range_sigma_m > 0.0) || !std::isfinite(default_range_sigma_m))
     os << "default_range_sigma_m = " << default_range_sigma_m << " (expected > 0 m)";
+  if (resamples < 0) os << "resamples = " << resamples << " (expected >= 0)";
   for (std::size_t v = 0; v < per_view.size() && os.str().empty(); ++v) {
     for (const LidarHoleSigma& s : per_view[v]) {
       if (!(s.center_in_plane_m >= 0.0 && s.center_normal_m >= 0.0 && s.tilt_rad >= 0.0) ||
@@ -254,8 +255,39 @@ ViewCovarianceInput view_covariance_input(const ProjectionModel& cam, const Smoo
   return out;
 }
 
+std::vector<Eigen::Vector3d> perturbed_circle_points(const TargetView& view,
+                                                     const std::vector<LidarHoleSigma>* sigma,
+                                                     double default_range_sigma_m, std::mt19937_64* rng) {
+  std::vector<Eigen::Vector3d> out = view.lidar_circle_points;
+  const std::vector<HoleCircle> holes = split_holes(view);
+  const bool caller_sigma = sigma != nullptr && sigma->size() == holes.size();
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (std::size_t h = 0; h < holes.size(); ++h) {
+    const HoleCircle& hole = holes[h];
+    Eigen::Vector3d a1, a2;
+    plane_axes(hole.normal, &a1, &a2);
+    LidarHoleSigma s;
+    if (caller_sigma) {
+      s = (*sigma)[h];
+    } else {
+      double radius = 0.0;
+      for (std::size_t i : hole.points) radius += (out[i] - hole.center).norm();
+      radius /= static_cast<double>(hole.points.size());
+      s.center_in_plane_m = s.center_normal_m = default_range_sigma_m;
+      s.tilt_rad = radius > 0.0 ? default_range_sigma_m / radius : 0.0;
+    }
+    const Eigen::Vector3d shift = s.center_in_plane_m * (gauss(*rng) * a1 + gauss(*rng) * a2) +
+                                  s.center_normal_m * gauss(*rng) * hole.normal;
+    const Eigen::Vector3d tilt = s.tilt_rad * (gauss(*rng) * a1 + gauss(*rng) * a2);
+    const Eigen::Matrix3d R = core::rotation_from_vector(tilt);
+    for (std::size_t i : hole.points) out[i] = hole.center + shift + R * (out[i] - hole.center);
+  }
+  return out;
+}
+
 CovarianceTerms combine_covariance(const std::vector<ViewCovarianceInput>& views,
-                                   const std::vector<core::Vector6d>& leave_one_out) {
+                                   const std::vector<core::Vector6d>& leave_one_out,
+                                   const std::vector<core::Vector6d>& resampled_deviations) {
   CovarianceTerms t;
   core::Matrix6d H = core::Matrix6d::Zero(), S = core::Matrix6d::Zero(), Sys = core::Matrix6d::Zero();
   double r2 = 0.0;
@@ -286,6 +318,11 @@ CovarianceTerms combine_covariance(const std::vector<ViewCovarianceInput>& views
     t.jackknife *= static_cast<double>(V - 1) / static_cast<double>(V);
     t.jackknife_used = true;
     t.total = covariance_max(t.total, t.jackknife);
+  } else if (!resampled_deviations.empty()) {
+    for (const auto& d : resampled_deviations) t.resampled += d * d.transpose();
+    t.resampled /= static_cast<double>(resampled_deviations.size());
+    t.resampled_used = true;
+    t.total = covariance_max(t.total, t.sandwich + t.resampled);
   }
   return t;
 }

@@ -2,6 +2,7 @@
 // What the covariance (rgbdt/extrinsics/covariance.hpp) needs of each used view at the
 // solution, computed from the view's points in one pass with the Jacobian. Private to the
 // module: align_edges calls it.
+#include <random>
 #include <vector>
 
 #include "edge_cost.hpp"
@@ -29,9 +30,18 @@ ViewCovarianceInput view_covariance_input(const ProjectionModel& cam, const Smoo
                                           const std::vector<LidarHoleSigma>* sigma,
                                           double default_range_sigma_m);
 
-/// The terms and the total from the used views' inputs and, when there are >= 3 of them,
-/// the leave-one-view-out solutions (empty: no jackknife).
+/// The view's circle points with each hole's circle moved by one draw of its LIDAR error
+/// (centre shift and tilt of the normal, with the covariance `sigma` gives it, as in
+/// view_covariance_input): one sample of what the detection could have given.
+std::vector<Eigen::Vector3d> perturbed_circle_points(const TargetView& view,
+                                                     const std::vector<LidarHoleSigma>* sigma,
+                                                     double default_range_sigma_m, std::mt19937_64* rng);
+
+/// The terms and the total from the used views' inputs; when there are >= 3 of them, the
+/// leave-one-view-out solutions (empty: no jackknife); with fewer, the deviations from the
+/// solution of the re-solves on perturbed circles (empty: none ran).
 CovarianceTerms combine_covariance(const std::vector<ViewCovarianceInput>& views,
-                                   const std::vector<core::Vector6d>& leave_one_out);
+                                   const std::vector<core::Vector6d>& leave_one_out,
+                                   const std::vector<core::Vector6d>& resampled_deviations = {});
 
 }  // namespace rgbdt::extrinsics::detail

@@ -11,6 +11,7 @@
 #include <limits>
 #include <memory>
 #include <opencv2/imgproc.hpp>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 
@@ -212,7 +213,33 @@ CovarianceTerms covariance_at_solution(const std::vector<TargetView>& views,
       leave_one_out.push_back(detail::polish(others, x, polish_options).x);
     }
   }
-  return detail::combine_covariance(inputs, leave_one_out);
+  std::vector<core::Vector6d> resampled;
+  if (model.resamples > 0 && !costs.empty() && costs.size() < 3) {
+    detail::PolishOptions polish_options;
+    polish_options.max_iterations = options.max_iterations;
+    polish_options.parameter_tolerance = options.parameter_tolerance;
+    polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
+    std::mt19937_64 rng(20261207);
+    std::vector<std::vector<Eigen::Vector3d>> points(costs.size());
+    std::vector<std::unique_ptr<ViewEdgeCost>> perturbed(costs.size());
+    std::vector<const ViewEdgeCost*> all;
+    for (size_t k = 0, c = 0; k < usable_index.size(); ++k) {
+      if (!active[k]) continue;
+      perturbed[c] = std::make_unique<ViewEdgeCost>(&cam, fields[k].get(), &points[c], options.huber_px);
+      all.push_back(perturbed[c].get());
+      ++c;
+    }
+    for (int draw = 0; draw < model.resamples; ++draw) {
+      for (size_t k = 0, c = 0; k < usable_index.size(); ++k) {
+        if (!active[k]) continue;
+        const size_t i = usable_index[k];
+        const std::vector<LidarHoleSigma>* sigma = i < model.per_view.size() ? &model.per_view[i] : nullptr;
+        points[c++] = detail::perturbed_circle_points(views[i], sigma, model.default_range_sigma_m, &rng);
+      }
+      resampled.push_back(detail::polish(all, x, polish_options).x - x);
+    }
+  }
+  return detail::combine_covariance(inputs, leave_one_out, resampled);
 }
 
 std::string usable_reason(const TargetView& view, const core::PinholeCamera& camera) {

@@ -106,7 +106,10 @@ std::string format_alignment_report(const std::string& camera_name, const EdgeAl
     os << "\nCovariance (rx ry rz tx ty tz; rad^2, m^2): image edges (clustered per hole) + the LIDAR "
           "circles' errors ("
        << t.holes_with_sigma << " of " << t.num_holes << " holes with a sigma from their detection)"
-       << (t.jackknife_used ? ", at least the leave-one-view-out scatter" : "") << ":\n\n```\n";
+       << (t.jackknife_used ? ", at least the leave-one-view-out scatter" : "")
+       << (t.resampled_used ? ", at least the spread of re-solves on circles moved by their errors (fewer than 3 views)"
+                            : "")
+       << ":\n\n```\n";
     os << std::scientific << std::setprecision(3);
     for (int i = 0; i < 6; ++i) {
       for (int j = 0; j < 6; ++j) os << (j ? " " : "") << std::setw(10) << r.covariance(i, j);

@@ -349,9 +349,12 @@ void check_observability(const std::vector<TargetView>& views, const EdgeAlignme
   M.bottomRightCorner<3, 3>().setIdentity();
   // The geometry's covariance: the model terms without the jackknife, whose leave-one-out
   // scatter measures the views' agreement (check_agreement judges that) and, dominated by the
-  // most leveraged view, overstates every direction alike.
+  // most leveraged view, overstates every direction alike. With 1-2 views the total is the
+  // model (its resampled term is the systematic one without linearisation).
   const CovarianceTerms& terms = r.covariance_terms;
-  const core::Matrix6d model = terms.valid ? core::Matrix6d(terms.sandwich + terms.systematic) : r.covariance;
+  const core::Matrix6d model = terms.valid && !terms.resampled_used
+                                   ? core::Matrix6d(terms.sandwich + terms.systematic)
+                                   : r.covariance;
   const Eigen::SelfAdjointEigenSolver<core::Matrix6d> cov_eig(model.allFinite() ? model : r.covariance);
   const core::Matrix6d L =
       cov_eig.eigenvectors() * cov_eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();

@@ -21,8 +21,15 @@
 ///                itself.
 ///  - jackknife:  (V - 1) / V sum_v (x_-v - mean)(x_-v - mean)^T over the leave-one-view-out
 ///                solutions (V >= 3 views): the scatter the views actually show.
-/// total = sandwich + systematic, or, with >= 3 views, the larger (in every direction: the
-/// matrix whose quadratic form is the larger) of that and the jackknife.
+///  - resampled:  with 1-2 views, (1/M) sum_m (x_m - x)(x_m - x)^T over M re-solves from x,
+///                each on circles moved by one draw of every hole's LIDAR error: the
+///                systematic term without its linearisation. Few views leave directions
+///                that only the holes' normals or a lever of a few hole spacings constrain;
+///                there a circle's error moves the pose far and along a curve (a rotation
+///                of 10-20 deg about the board swings the translation by decimetres), which
+///                the first-order term misses by 10-40x.
+/// total = sandwich + systematic, raised (in every direction: the matrix whose quadratic
+/// form is the larger) with >= 3 views to the jackknife, with fewer to sandwich + resampled.
 #include <Eigen/Core>
 #include <string>
 #include <vector>
@@ -72,6 +79,9 @@ struct CovarianceOptions {
   /// 1-sigma on every axis and, over the hole radius, as the tilt of its normal.
   double default_range_sigma_m = 0.01;
   bool jackknife = true;  ///< leave-one-view-out with >= 3 used views
+  /// With 1-2 used views (no jackknife): re-solves on this many draws of the LIDAR circles'
+  /// errors (0 = none).
+  int resamples = 64;
   std::string validate() const;  ///< empty when valid, else the reason
 };
 
@@ -81,11 +91,13 @@ struct CovarianceTerms {
   core::Matrix6d sandwich = core::Matrix6d::Zero();
   core::Matrix6d systematic = core::Matrix6d::Zero();
   core::Matrix6d jackknife = core::Matrix6d::Zero();
+  core::Matrix6d resampled = core::Matrix6d::Zero();
   core::Matrix6d total = core::Matrix6d::Zero();
   int num_views = 0;            ///< used views
   int num_holes = 0;            ///< hole clusters over the used views
   int holes_with_sigma = 0;     ///< of which have a LidarHoleSigma from the caller
   bool jackknife_used = false;  ///< >= 3 views and the leave-one-out solves ran
+  bool resampled_used = false;  ///< < 3 views and the re-solves on perturbed circles ran
   bool valid = false;           ///< H full rank: every parameter observable
 };
 
