@@ -1,6 +1,7 @@
 #include "rgbdt/extrinsics/covariance.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -103,6 +104,38 @@ core::Matrix6d pseudo_inverse(const core::Matrix6d& H, bool* full_rank) {
   return eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
 }
 
+/// The centre error that an edge error smooth along the hole causes, per in-plane axis
+/// [m^2]: the radial residuals are fitted with the Fourier orders 0-5 around the hole, and
+/// the mean square of the order 2-5 coefficients is taken as that of order 1 (the centre
+/// shift, which the circle fit absorbs and so cannot be seen). Edge errors that vary slowly
+/// around the hole (point density that changes across it, a scan pattern) show in the
+/// orders next to 1; white edge noise gives about sigma^2 (2 / n), as the scatter term.
+/// 0 when the edges are too few (< 36) or leave a quadrant around the hole empty.
+double smooth_edge_error2(const std::vector<Eigen::Vector3d>& edge_points, const Eigen::Vector3d& center,
+                          const Eigen::Vector3d& a1, const Eigen::Vector3d& a2) {
+  constexpr int kOrders = 5, kColumns = 2 * kOrders + 1, kMinPoints = 36;
+  if (edge_points.size() < static_cast<std::size_t>(kMinPoints)) return 0.0;
+  Eigen::MatrixXd A(static_cast<Eigen::Index>(edge_points.size()), kColumns);
+  Eigen::VectorXd b(A.rows());
+  int quadrants = 0;
+  Eigen::Index row = 0;
+  for (const auto& p : edge_points) {
+    const Eigen::Vector2d d((p - center).dot(a1), (p - center).dot(a2));
+    if (d.norm() <= 0.0) continue;
+    const double phi = std::atan2(d.y(), d.x());
+    quadrants |= 1 << std::clamp(static_cast<int>((phi + EIGEN_PI) / (0.5 * EIGEN_PI)), 0, 3);
+    A(row, 0) = 1.0;
+    for (int k = 1; k <= kOrders; ++k) {
+      A(row, 2 * k - 1) = std::cos(k * phi);
+      A(row, 2 * k) = std::sin(k * phi);
+    }
+    b(row++) = d.norm();
+  }
+  if (row < kMinPoints || quadrants != 0xF) return 0.0;
+  const Eigen::VectorXd x = A.topRows(row).colPivHouseholderQr().solve(b.head(row));
+  return x.tail(2 * (kOrders - 1)).squaredNorm() / (2.0 * (kOrders - 1));
+}
+
 }  // namespace
 
 LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
@@ -152,7 +185,8 @@ LidarHoleSigma lidar_hole_sigma(const std::vector<Eigen::Vector3d>& edge_points,
   const double sin_incidence =
       range > 0.0 ? std::sqrt(std::max(0.0, 1.0 - std::pow(center.dot(n) / range, 2))) : 0.0;
   const double footprint2 = std::pow(0.5 * edge_bias_m * sin_incidence, 2);
-  s.center_in_plane_m = weakest > 1e-9 ? std::sqrt(sigma_e2 / weakest + footprint2) : radius_m;
+  const double smooth2 = smooth_edge_error2(edge_points, center, a1, a2);
+  s.center_in_plane_m = weakest > 1e-9 ? std::sqrt(std::max(sigma_e2 / weakest, smooth2) + footprint2) : radius_m;
   // Board plane z = b0 + b1 u + b2 w in the hole's axes: offset at the centre and slopes.
   Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
   Eigen::Vector3d Atz = Eigen::Vector3d::Zero();

@@ -5,6 +5,7 @@
 // rgbdt_calibrate does. The bench runs the full study.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -32,8 +33,13 @@ TEST(ConsistencyStudy, DeliveredCovarianceContainsTheTruthAsOftenAsItSays) {
   // With an honest covariance, each delivered case lies inside its 95 % ellipsoid with
   // probability 0.95: of 8-12 cases, fewer than 80 % inside has a probability below 2 %.
   EXPECT_GE(s.inside95, 0.8) << s.scored << " delivered";
-  // The mean of n chi-square(6) NEES values has mean 6 and standard deviation
-  // sqrt(12 / n), about 1 here: the issue's [3, 9] is 3 of them either way.
-  EXPECT_GE(s.mean_nees, 3.0);
-  EXPECT_LE(s.mean_nees, 9.0);
+  // Item 4 asks the mean NEES over >= 50 sessions to lie in [3, 9] (the bench's 128 give
+  // 3.4-3.6: the covariance errs on the large side, by design where it takes the larger of
+  // two estimates). Here n is about 11, so the sample mean scatters: a covariance scaled so
+  // that the population mean sits at an edge m of the band gives NEES m / 6 chi-square(6),
+  // whose mean over n cases has standard deviation (m / 6) sqrt(12 / n). The test fails
+  // when the sample mean is 3 of those outside the band.
+  const double n = s.scored;
+  EXPECT_GE(s.mean_nees, 3.0 - 3.0 * (3.0 / 6.0) * std::sqrt(12.0 / n));
+  EXPECT_LE(s.mean_nees, 9.0 + 3.0 * (9.0 / 6.0) * std::sqrt(12.0 / n));
 }

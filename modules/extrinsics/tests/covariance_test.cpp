@@ -81,6 +81,44 @@ TEST(Covariance, LidarHoleSigmaFollowsTheNoise) {
               0.01 * s.center_in_plane_m);
 }
 
+// An edge error that varies slowly around the hole (the point density of a scan pattern
+// changing across it) moves the centre by its first Fourier order, which the circle fit
+// absorbs; the white scatter of 180 edge points says nothing of it. Holes whose radial
+// error has equal random amplitudes (1-sigma 3 mm) in orders 1-5 plus 1 mm of white noise:
+// the centre's error per axis is the order-1 amplitude, and its mean square over the holes
+// must match the reported in-plane sigma's square (ratio 1; 300 holes of 2 axes give a
+// relative standard deviation of 6 %, so [0.7, 1.4] is 5 of them; the scatter term alone
+// gives a ratio of 29).
+TEST(Covariance, LidarHoleSigmaCoversASmoothEdgeError) {
+  std::mt19937 rng(17);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Eigen::Vector3d c(4, -0.3, 0.1), n = Eigen::Vector3d(-1, 0.1, 0.05).normalized();
+  const Eigen::Vector3d a1 = n.cross(Eigen::Vector3d::UnitZ()).normalized(), a2 = n.cross(a1);
+  std::vector<Eigen::Vector3d> board;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) board.push_back(c + (-0.6 + 0.06 * i) * a1 + (-0.6 + 0.06 * j) * a2);
+  double ratio = 0.0;
+  constexpr int kHoles = 300;
+  for (int h = 0; h < kHoles; ++h) {
+    Eigen::Matrix<double, 5, 2> amplitude;
+    for (int k = 0; k < 5; ++k) amplitude.row(k) << 0.003 * g(rng), 0.003 * g(rng);
+    std::vector<Eigen::Vector3d> edges;
+    for (int i = 0; i < 180; ++i) {
+      const double th = 2 * M_PI * (i + 0.5) / 180;
+      double r = 0.3 + 0.001 * g(rng);
+      for (int k = 0; k < 5; ++k) r += amplitude(k, 0) * std::cos((k + 1) * th) + amplitude(k, 1) * std::sin((k + 1) * th);
+      edges.push_back(c + r * (std::cos(th) * a1 + std::sin(th) * a2));
+    }
+    // The fitted centre is off by the order-1 amplitudes; the sigma is computed about it.
+    const Eigen::Vector3d fitted = c + amplitude(0, 0) * a1 + amplitude(0, 1) * a2;
+    const ext::LidarHoleSigma s = ext::lidar_hole_sigma(edges, board, fitted, n, 0.3);
+    ratio += amplitude.row(0).squaredNorm() / 2.0 / (s.center_in_plane_m * s.center_in_plane_m);
+  }
+  ratio /= kHoles;
+  EXPECT_GT(ratio, 0.7);
+  EXPECT_LT(ratio, 1.4);
+}
+
 // What the points' scatter cannot show. A beam footprint that measured an edge bias of 2 cm
 // on a board seen at 30 deg incidence adds 0.5 * 2 cm * sin(30 deg) = 0.5 cm in the plane
 // and along the normal; 360 edge points 1.75 mm apart on a 0.3 m hole count as one per

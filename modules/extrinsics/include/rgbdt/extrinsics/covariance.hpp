@@ -53,9 +53,13 @@ struct LidarHoleSigma {
 /// (spacing^2 / 12: the edge lies anywhere within one step of the last board point). Edge
 /// points closer together than the beam footprint (twice the edge bias the view measured)
 /// or the point spacing see the same stretch of edge, so the count is capped at the number
-/// of such stretches around the hole. Along the normal: the offset at the centre and the
-/// tilt of the least-squares plane through the board points (their RMS distance to the
-/// plane is the range noise along the normal).
+/// of such stretches around the hole. An edge error that varies slowly around the hole (a
+/// point density that changes across it) moves the centre by its first Fourier order,
+/// which the fit absorbs; with >= 36 edge points in all four quadrants the in-plane sigma
+/// is at least the RMS coefficient of the radial residuals' Fourier orders 2-5 (fitted
+/// with orders 0-5). Along the normal: the offset at the centre and the tilt of the
+/// least-squares plane through the board points (their RMS distance to the plane is the
+/// range noise along the normal).
 ///
 /// On top of both, the beam footprint's systematic part: a return whose footprint straddles
 /// an edge lies behind the board by a part of the footprint's depth spread, so the fitted
