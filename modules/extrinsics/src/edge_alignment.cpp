@@ -180,65 +180,82 @@ detail::PointFit fit_of_view(const std::vector<Eigen::Vector3d>& points, const S
   return fit;
 }
 
+/// The LM polish's stopping rules from the options (the solve's own adds Ceres's gradient
+/// tolerance).
+detail::PolishOptions polish_options_of(const EdgeAlignmentOptions& options) {
+  detail::PolishOptions polish_options;
+  polish_options.max_iterations = options.max_iterations;
+  polish_options.parameter_tolerance = options.parameter_tolerance;
+  polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
+  return polish_options;
+}
+
+/// The used views' re-solves from x on `resamples` seeded draws of their circles' LIDAR
+/// errors (covariance.hpp, `resampled`): each solution's deviation from x.
+std::vector<core::Vector6d> resampled_deviations(const std::vector<TargetView>& views,
+                                                 const std::vector<size_t>& used,
+                                                 const std::vector<const SmoothView*>& fields,
+                                                 const std::vector<const std::vector<LidarHoleSigma>*>& sigmas,
+                                                 const ProjectionModel& cam, const core::Vector6d& x,
+                                                 const EdgeAlignmentOptions& options) {
+  const CovarianceOptions& model = options.covariance_model;
+  std::mt19937_64 rng(20261207);
+  std::vector<std::vector<Eigen::Vector3d>> points(used.size());
+  std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+  std::vector<const ViewEdgeCost*> all;
+  for (size_t c = 0; c < used.size(); ++c) {
+    costs.push_back(std::make_unique<ViewEdgeCost>(&cam, fields[c], &points[c], options.huber_px));
+    all.push_back(costs.back().get());
+  }
+  std::vector<core::Vector6d> deviations;
+  for (int draw = 0; draw < model.resamples; ++draw) {
+    for (size_t c = 0; c < used.size(); ++c)
+      points[c] = detail::perturbed_circle_points(views[used[c]], sigmas[c], model.default_range_sigma_m, &rng);
+    deviations.push_back(detail::polish(all, x, polish_options_of(options)).x - x);
+  }
+  return deviations;
+}
+
 /// The covariance of the solution x (covariance.hpp) over the active views; the jackknife's
-/// leave-one-view-out solves are polishes of Eq. (2) (our cost, whatever the method) from x.
+/// leave-one-view-out solves and the few-view re-solves are polishes of Eq. (2) (our cost,
+/// whatever the method) from x.
 CovarianceTerms covariance_at_solution(const std::vector<TargetView>& views,
                                        const std::vector<size_t>& usable_index,
                                        const std::vector<bool>& active,
-                                       const std::vector<std::unique_ptr<SmoothView>>& fields,
+                                       const std::vector<std::unique_ptr<SmoothView>>& all_fields,
                                        const ProjectionModel& cam, const core::Vector6d& x,
                                        const EdgeAlignmentOptions& options) {
   const CovarianceOptions& model = options.covariance_model;
-  std::vector<detail::ViewCovarianceInput> inputs;
-  std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+  std::vector<size_t> used;
+  std::vector<const SmoothView*> fields;
+  std::vector<const std::vector<LidarHoleSigma>*> sigmas;
   for (size_t k = 0; k < usable_index.size(); ++k) {
     if (!active[k]) continue;
     const size_t i = usable_index[k];
-    const std::vector<LidarHoleSigma>* sigma = i < model.per_view.size() ? &model.per_view[i] : nullptr;
-    inputs.push_back(detail::view_covariance_input(cam, *fields[k], views[i], x, sigma,
+    used.push_back(i);
+    fields.push_back(all_fields[k].get());
+    sigmas.push_back(i < model.per_view.size() ? &model.per_view[i] : nullptr);
+  }
+  std::vector<detail::ViewCovarianceInput> inputs;
+  std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+  for (size_t c = 0; c < used.size(); ++c) {
+    inputs.push_back(detail::view_covariance_input(cam, *fields[c], views[used[c]], x, sigmas[c],
                                                    model.default_range_sigma_m));
-    costs.push_back(std::make_unique<ViewEdgeCost>(&cam, fields[k].get(), &views[i].lidar_circle_points,
+    costs.push_back(std::make_unique<ViewEdgeCost>(&cam, fields[c], &views[used[c]].lidar_circle_points,
                                                    options.huber_px));
   }
   std::vector<core::Vector6d> leave_one_out;
   if (model.jackknife && costs.size() >= 3) {
-    detail::PolishOptions polish_options;
-    polish_options.max_iterations = options.max_iterations;
-    polish_options.parameter_tolerance = options.parameter_tolerance;
-    polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
     for (size_t out = 0; out < costs.size(); ++out) {
       std::vector<const ViewEdgeCost*> others;
       for (size_t j = 0; j < costs.size(); ++j)
         if (j != out) others.push_back(costs[j].get());
-      leave_one_out.push_back(detail::polish(others, x, polish_options).x);
+      leave_one_out.push_back(detail::polish(others, x, polish_options_of(options)).x);
     }
   }
   std::vector<core::Vector6d> resampled;
-  if (model.resamples > 0 && !costs.empty() && costs.size() < 3) {
-    detail::PolishOptions polish_options;
-    polish_options.max_iterations = options.max_iterations;
-    polish_options.parameter_tolerance = options.parameter_tolerance;
-    polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
-    std::mt19937_64 rng(20261207);
-    std::vector<std::vector<Eigen::Vector3d>> points(costs.size());
-    std::vector<std::unique_ptr<ViewEdgeCost>> perturbed(costs.size());
-    std::vector<const ViewEdgeCost*> all;
-    for (size_t k = 0, c = 0; k < usable_index.size(); ++k) {
-      if (!active[k]) continue;
-      perturbed[c] = std::make_unique<ViewEdgeCost>(&cam, fields[k].get(), &points[c], options.huber_px);
-      all.push_back(perturbed[c].get());
-      ++c;
-    }
-    for (int draw = 0; draw < model.resamples; ++draw) {
-      for (size_t k = 0, c = 0; k < usable_index.size(); ++k) {
-        if (!active[k]) continue;
-        const size_t i = usable_index[k];
-        const std::vector<LidarHoleSigma>* sigma = i < model.per_view.size() ? &model.per_view[i] : nullptr;
-        points[c++] = detail::perturbed_circle_points(views[i], sigma, model.default_range_sigma_m, &rng);
-      }
-      resampled.push_back(detail::polish(all, x, polish_options).x - x);
-    }
-  }
+  if (model.resamples > 0 && !used.empty() && used.size() < 3)
+    resampled = resampled_deviations(views, used, fields, sigmas, cam, x, options);
   return detail::combine_covariance(inputs, leave_one_out, resampled);
 }
 
@@ -458,11 +475,8 @@ std::string solve_coarse_then_polish(const AlignmentProblem& p, RoundState* stat
                                                    options.huber_px));
     cost_pointers.push_back(costs.back().get());
   }
-  detail::PolishOptions polish_options;
-  polish_options.max_iterations = options.max_iterations;
-  polish_options.parameter_tolerance = options.parameter_tolerance;
+  detail::PolishOptions polish_options = polish_options_of(options);
   polish_options.gradient_tolerance = p.solver_options.gradient_tolerance;
-  polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
   detail::PolishResult polished = detail::polish(cost_pointers, *x, polish_options);
   *x = polished.x;
   result->iterations += polished.iterations;

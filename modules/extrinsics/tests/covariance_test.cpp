@@ -15,6 +15,32 @@ namespace t = rgbdt::extrinsics::testing;
 using rgbdt::core::Matrix6d;
 using rgbdt::core::Vector6d;
 
+namespace {
+
+/// Moves each view's circle (points, centre, normal) by one draw of the hole error `sigma`
+/// states, and gives align_edges that sigma for it.
+void perturb_circles(std::vector<ext::TargetView>* views, const ext::LidarHoleSigma& sigma, std::mt19937* rng,
+                     std::normal_distribution<double>* gauss, ext::EdgeAlignmentOptions* options) {
+  auto g = [gauss](std::mt19937& r) { return (*gauss)(r); };
+  for (auto& v : *views) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : v.lidar_circle_points) c += p;
+    c /= static_cast<double>(v.lidar_circle_points.size());
+    const Eigen::Vector3d n = (v.lidar_circle_points[0] - c).cross(v.lidar_circle_points[90] - c).normalized();
+    const Eigen::Vector3d a1 = n.cross(Eigen::Vector3d::UnitZ()).normalized(), a2 = n.cross(a1);
+    const Eigen::Vector3d shift =
+        sigma.center_in_plane_m * (g(*rng) * a1 + g(*rng) * a2) + sigma.center_normal_m * g(*rng) * n;
+    const Eigen::Matrix3d tilt =
+        Eigen::AngleAxisd(sigma.tilt_rad * g(*rng), a1) * Eigen::AngleAxisd(sigma.tilt_rad * g(*rng), a2).toRotationMatrix();
+    for (auto& p : v.lidar_circle_points) p = c + shift + tilt * (p - c);
+    for (auto& lc : v.lidar_centers) lc = c + shift;
+    for (auto& ln : v.lidar_normals) ln = tilt * ln;
+    options->covariance_model.per_view.push_back({sigma});
+  }
+}
+
+}  // namespace
+
 TEST(Covariance, MaxIsAtLeastBothInEveryDirection) {
   std::mt19937 rng(3);
   std::normal_distribution<double> g;
@@ -181,21 +207,7 @@ TEST(Covariance, SystematicTermMatchesMonteCarloResolves) {
     std::vector<ext::TargetView> views = clean;
     ext::EdgeAlignmentOptions options;
     options.covariance_model.jackknife = false;  // the propagated term alone
-    for (auto& v : views) {
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (const auto& p : v.lidar_circle_points) c += p;
-      c /= static_cast<double>(v.lidar_circle_points.size());
-      const Eigen::Vector3d n = (v.lidar_circle_points[0] - c).cross(v.lidar_circle_points[90] - c).normalized();
-      const Eigen::Vector3d a1 = n.cross(Eigen::Vector3d::UnitZ()).normalized(), a2 = n.cross(a1);
-      const Eigen::Vector3d shift =
-          sigma.center_in_plane_m * (g(rng) * a1 + g(rng) * a2) + sigma.center_normal_m * g(rng) * n;
-      const Eigen::Matrix3d tilt =
-          Eigen::AngleAxisd(sigma.tilt_rad * g(rng), a1) * Eigen::AngleAxisd(sigma.tilt_rad * g(rng), a2).toRotationMatrix();
-      for (auto& p : v.lidar_circle_points) p = c + shift + tilt * (p - c);
-      for (auto& lc : v.lidar_centers) lc = c + shift;
-      for (auto& ln : v.lidar_normals) ln = tilt * ln;
-      options.covariance_model.per_view.push_back({sigma});
-    }
+    perturb_circles(&views, sigma, &rng, &g, &options);
     const ext::EdgeAlignmentResult r = ext::align_edges(views, camera, options, truth);
     ASSERT_TRUE(r.covariance_valid) << r.message;
     const Vector6d e = rgbdt::core::to_vector6(r.T_camera_lidar) - rgbdt::core::to_vector6(truth);
@@ -209,11 +221,10 @@ TEST(Covariance, SystematicTermMatchesMonteCarloResolves) {
 }
 
 // The same experiment with two nearly frontal single-hole views 0.6 m apart and 3 cm circle
-// errors in the plane, as a 16-ring LIDAR gives them: the rotation about the line between the two holes
-// rests on their normals alone, and a centre error moves the pose along a curve. The
-// first-order term is then too small; the resampled term
-// that replaces it below 3 views must bring the mean NEES of the re-solves down to a
-// chi-square's.
+// errors in the plane, as a 16-ring LIDAR gives them: the rotation about the line between
+// the two holes rests on their normals alone, and a centre error moves the pose along a
+// curve. The first-order term is then too small; the resampled term, which raises the
+// total below 3 views, must bring the mean NEES of the re-solves down to a chi-square's.
 TEST(Covariance, FewViewsAreCoveredByTheResampledTerm) {
   const rgbdt::core::PinholeCamera camera(t::table1_intrinsics());
   const Eigen::Isometry3d truth = t::true_T_camera_lidar();
@@ -231,21 +242,7 @@ TEST(Covariance, FewViewsAreCoveredByTheResampledTerm) {
   for (int d = 0; d < kDraws; ++d) {
     std::vector<ext::TargetView> views = clean;
     ext::EdgeAlignmentOptions options;
-    for (auto& v : views) {
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (const auto& p : v.lidar_circle_points) c += p;
-      c /= static_cast<double>(v.lidar_circle_points.size());
-      const Eigen::Vector3d n = (v.lidar_circle_points[0] - c).cross(v.lidar_circle_points[90] - c).normalized();
-      const Eigen::Vector3d a1 = n.cross(Eigen::Vector3d::UnitZ()).normalized(), a2 = n.cross(a1);
-      const Eigen::Vector3d shift =
-          sigma.center_in_plane_m * (g(rng) * a1 + g(rng) * a2) + sigma.center_normal_m * g(rng) * n;
-      const Eigen::Matrix3d tilt =
-          Eigen::AngleAxisd(sigma.tilt_rad * g(rng), a1) * Eigen::AngleAxisd(sigma.tilt_rad * g(rng), a2).toRotationMatrix();
-      for (auto& p : v.lidar_circle_points) p = c + shift + tilt * (p - c);
-      for (auto& lc : v.lidar_centers) lc = c + shift;
-      for (auto& ln : v.lidar_normals) ln = tilt * ln;
-      options.covariance_model.per_view.push_back({sigma});
-    }
+    perturb_circles(&views, sigma, &rng, &g, &options);
     const ext::EdgeAlignmentResult r = ext::align_edges(views, camera, options, truth);
     ASSERT_TRUE(r.covariance_valid) << r.message;
     ASSERT_TRUE(r.covariance_terms.resampled_used);
