@@ -4,6 +4,7 @@
 #include <ceres/cubic_interpolation.h>
 #include <ceres/rotation.h>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
@@ -216,9 +217,41 @@ std::vector<core::Vector6d> resampled_deviations(const std::vector<TargetView>& 
   return deviations;
 }
 
+/// The jackknife's solutions without each view in turn, from the solution x: one
+/// Gauss-Newton step on the other views' normal equations at x (CovarianceOptions::
+/// jackknife_one_step), else, or where that system is singular, an LM polish of them.
+std::vector<core::Vector6d> leave_one_view_out(const std::vector<std::unique_ptr<ViewEdgeCost>>& costs,
+                                               const core::Vector6d& x, const EdgeAlignmentOptions& options) {
+  std::vector<detail::NormalEquations> ne(costs.size());
+  detail::NormalEquations all;
+  if (options.covariance_model.jackknife_one_step) {
+    detail::PointFit fit;
+    for (size_t c = 0; c < costs.size(); ++c) {
+      costs[c]->accumulate(x.data(), &ne[c], &fit);
+      all += ne[c];
+    }
+  }
+  std::vector<core::Vector6d> out;
+  for (size_t v = 0; v < costs.size(); ++v) {
+    if (options.covariance_model.jackknife_one_step) {
+      const Eigen::LDLT<core::Matrix6d> others(all.JtJ - ne[v].JtJ);
+      const core::Vector6d step = others.solve(ne[v].Jtr - all.Jtr);
+      if (others.info() == Eigen::Success && others.isPositive() && step.allFinite()) {
+        out.push_back(x + step);
+        continue;
+      }
+    }
+    std::vector<const ViewEdgeCost*> others;
+    for (size_t j = 0; j < costs.size(); ++j)
+      if (j != v) others.push_back(costs[j].get());
+    out.push_back(detail::polish(others, x, polish_options_of(options)).x);
+  }
+  return out;
+}
+
 /// The covariance of the solution x (covariance.hpp) over the active views; the jackknife's
-/// leave-one-view-out solves and the few-view re-solves are polishes of Eq. (2) (our cost,
-/// whatever the method) from x.
+/// leave-one-view-out solutions and the few-view re-solves use Eq. (2) (our cost, whatever
+/// the method) from x.
 CovarianceTerms covariance_at_solution(const std::vector<TargetView>& views,
                                        const std::vector<size_t>& usable_index,
                                        const std::vector<bool>& active,
@@ -245,14 +278,7 @@ CovarianceTerms covariance_at_solution(const std::vector<TargetView>& views,
                                                    options.huber_px));
   }
   std::vector<core::Vector6d> leave_one_out;
-  if (model.jackknife && costs.size() >= 3) {
-    for (size_t out = 0; out < costs.size(); ++out) {
-      std::vector<const ViewEdgeCost*> others;
-      for (size_t j = 0; j < costs.size(); ++j)
-        if (j != out) others.push_back(costs[j].get());
-      leave_one_out.push_back(detail::polish(others, x, polish_options_of(options)).x);
-    }
-  }
+  if (model.jackknife && costs.size() >= 3) leave_one_out = leave_one_view_out(costs, x, options);
   std::vector<core::Vector6d> resampled;
   if (model.resamples > 0 && !used.empty() && used.size() < 3)
     resampled = resampled_deviations(views, used, fields, sigmas, cam, x, options);

@@ -20,7 +20,9 @@
 ///                h with covariance Sigma_h from LidarHoleSigma: what no view reveals about
 ///                itself.
 ///  - jackknife:  (V - 1) / V sum_v (x_-v - mean)(x_-v - mean)^T over the leave-one-view-out
-///                solutions (V >= 3 views): the scatter the views actually show.
+///                solutions (V >= 3 views): the scatter the views actually show. Each
+///                x_-v is one Gauss-Newton step from x on the other views' normal
+///                equations (CovarianceOptions::jackknife_one_step).
 ///  - resampled:  with 1-2 views, (1/M) sum_m (x_m - x)(x_m - x)^T over M re-solves from x,
 ///                each on circles moved by one draw of every hole's LIDAR error: the
 ///                systematic term without its linearisation. Few views leave directions
@@ -83,6 +85,11 @@ struct CovarianceOptions {
   /// 1-sigma on every axis and, over the hole radius, as the tilt of its normal.
   double default_range_sigma_m = 0.01;
   bool jackknife = true;  ///< leave-one-view-out with >= 3 used views
+  /// Each leave-one-view-out solution as one Gauss-Newton step from the solution x on the
+  /// normal equations of the other views at x (H - H_v, the other views' gradient), from one
+  /// pass over the points; false: a Levenberg-Marquardt polish of the other views from x to
+  /// convergence (a few passes each).
+  bool jackknife_one_step = true;
   /// With 1-2 used views (no jackknife): re-solves on this many draws of the LIDAR circles'
   /// errors (0 = none).
   int resamples = 64;
