@@ -32,7 +32,13 @@ int main(int argc, char** argv) {
   app.add_option("--only", only,
                  "run only the case with this seed (of the --cases from --first-seed), e.g. to look at one "
                  "outlier again");
+  bool jackknife_polish = false;
+  app.add_flag("--jackknife-polish", jackknife_polish,
+               "leave-one-view-out solutions as LM polishes to convergence instead of one Gauss-Newton step "
+               "(CovarianceOptions::jackknife_one_step = false), to compare the two");
   CLI11_PARSE(app, argc, argv);
+  rgbdt::extrinsics::CovarianceOptions covariance;
+  covariance.jackknife_one_step = !jackknife_polish;
   rgbdt::core::set_log_level(rgbdt::core::LogLevel::kWarning);
 
   std::printf("%4s %5s %5s %5s %-11s %4s | %8s %8s | %7s %7s %7s %7s | %5s %5s %s\n", "seed", "views", "holes",
@@ -41,7 +47,7 @@ int main(int argc, char** argv) {
   std::vector<study::CaseResult> results;
   for (const study::Case& c : study::make_cases(cases, first_seed)) {
     if (only != 0 && c.seed != only) continue;
-    const study::CaseResult r = study::run_case(c, tmp);
+    const study::CaseResult r = study::run_case(c, tmp, covariance);
     results.push_back(r);
     if (!r.ok) {
       std::printf("%4lu %5d %5d %5.2f %-11s  -- not scored: %s\n", static_cast<unsigned long>(c.seed), c.views, c.holes,

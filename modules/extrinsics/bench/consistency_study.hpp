@@ -144,8 +144,10 @@ inline double trans_cm(const core::Vector6d& e) { return e.tail<3>().norm() * 10
 }  // namespace detail
 
 /// Simulates the case's session under tmp_dir/case_<seed>, calibrates its RGB camera and
-/// scores the result. The session directory is removed afterwards.
-inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) {
+/// scores the result. The session directory is removed afterwards. `covariance` holds the
+/// covariance model's switches (its per-view sigmas come from the detections).
+inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir,
+                           const CovarianceOptions& covariance = {}) {
   namespace fs = std::filesystem;
   const auto start = std::chrono::steady_clock::now();
   CaseResult out;
@@ -165,6 +167,8 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir) 
 
   std::vector<TargetView> views;
   EdgeAlignmentOptions options;
+  options.covariance_model = covariance;
+  options.covariance_model.per_view.clear();
   for (std::size_t i = 0; i < session.views.size(); ++i) {
     const auto& sv = session.views[i];
     const cloud::LoadedCloud loaded = cloud::load_pcd(sv.cloud);
