@@ -26,6 +26,7 @@ struct Correspondence {
   Eigen::Vector3d center_lidar, normal_lidar;
   cv::RotatedRect ellipse;
   double radius_m;
+  CircleInCamera circle;  ///< circle_from_ellipse(ellipse, radius_m)
 };
 
 /// RMS [px] of the LIDAR hole centres projected with T against the ellipse centres; +inf
@@ -137,10 +138,14 @@ Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
 
 namespace {
 
+/// Up to this many holes, solve_pairing tries every choice of the ellipses' normals.
+constexpr std::size_t kExhaustiveNormalChoices = 6;
+
 /// One view's holes as the two detectors list them (each in its own order).
 struct ViewHoles {
   std::vector<Eigen::Vector3d> centers, normals;  // LIDAR frame
   std::vector<cv::RotatedRect> ellipses;          // image
+  std::vector<CircleInCamera> circles;            // circle_from_ellipse of each ellipse
   double radius_m = 0.0;
 };
 
@@ -151,7 +156,8 @@ std::vector<Correspondence> correspondences(const std::vector<ViewHoles>& views,
   std::vector<Correspondence> cs;
   for (std::size_t v = 0; v < views.size(); ++v) {
     for (std::size_t k = 0; k < pairing[v].size(); ++k)
-      cs.push_back({views[v].centers[k], views[v].normals[k], views[v].ellipses[pairing[v][k]], views[v].radius_m});
+      cs.push_back({views[v].centers[k], views[v].normals[k], views[v].ellipses[pairing[v][k]], views[v].radius_m,
+                    views[v].circles[pairing[v][k]]});
   }
   return cs;
 }
@@ -215,57 +221,87 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
 
   // (B) Circle poses from the ellipses, aligned with the LIDAR centres and normals.
   std::vector<CircleInCamera> circles;
-  for (const auto& c : cs) circles.push_back(circle_from_ellipse(c.ellipse, c.radius_m, camera));
-  std::vector<Eigen::Vector3d> a, b, na, nb;
+  for (const auto& c : cs) circles.push_back(c.circle);
+  std::vector<Eigen::Vector3d> a, b, na;
   for (std::size_t i = 0; i < cs.size(); ++i) {
     a.push_back(cs[i].center_lidar);
     b.push_back(circles[i].center);
     na.push_back(cs[i].normal_lidar);
   }
-  // Choose the normal of each ellipse: enumerate the 2^n choices for few holes, else pick
-  // the one closest to a centres-only alignment.
-  auto alignment_cost = [&](const Eigen::Isometry3d& T, const std::vector<Eigen::Vector3d>& nbs) {
+  // Each ellipse has two circle normals. Few holes: every choice (2^n alignments). More: the
+  // normals nearest to the LIDAR's under a rotation from the other evidence (the centres
+  // alone, and PnP's when it ran), then single flips while one lowers the cost, so the
+  // search stays a few alignments per hole rather than 2^n (1024 at 10 views of one hole).
+  const auto alignment_cost = [&](const Eigen::Isometry3d& T, const std::vector<Eigen::Vector3d>& nbs) {
     double cost = 0.0;
     for (std::size_t i = 0; i < a.size(); ++i) cost += (T * a[i] - b[i]).squaredNorm();
     for (std::size_t i = 0; i < na.size(); ++i) cost += (T.linear() * na[i] - nbs[i]).squaredNorm();
     return cost;
   };
+  std::vector<Eigen::Vector3d> nb_of(cs.size());
+  const auto align_with = [&](const std::vector<bool>& choice, double* cost) {
+    for (std::size_t i = 0; i < cs.size(); ++i) nb_of[i] = circles[i].normals[choice[i] ? 1 : 0];
+    const Eigen::Isometry3d T = align_rigid(a, b, na, nb_of);
+    *cost = alignment_cost(T, nb_of);
+    return T;
+  };
   const std::string how = "ellipse poses + Kabsch on " + std::to_string(cs.size()) + " holes";
-  if (cs.size() <= 10) {
-    double best = std::numeric_limits<double>::infinity();
-    Eigen::Isometry3d best_T = Eigen::Isometry3d::Identity();
+  double best = std::numeric_limits<double>::infinity();
+  Eigen::Isometry3d best_T = Eigen::Isometry3d::Identity();
+  const auto keep = [&](const Eigen::Isometry3d& T, double cost) {
+    if (cost < best) {
+      best = cost;
+      best_T = T;
+    }
+  };
+  std::vector<bool> choice(cs.size());
+  if (cs.size() <= kExhaustiveNormalChoices) {
     for (unsigned mask = 0; mask < (1u << cs.size()); ++mask) {
-      nb.clear();
-      for (std::size_t i = 0; i < cs.size(); ++i) nb.push_back(circles[i].normals[(mask >> i) & 1u]);
-      const Eigen::Isometry3d T = align_rigid(a, b, na, nb);
-      const double cost = alignment_cost(T, nb);
-      if (cost < best) {
-        best = cost;
-        best_T = T;
-      }
+      for (std::size_t i = 0; i < cs.size(); ++i) choice[i] = ((mask >> i) & 1u) != 0;
+      double cost = 0.0;
+      const Eigen::Isometry3d T = align_with(choice, &cost);
+      keep(T, cost);
     }
-    candidates.emplace_back(best_T, how);
   } else {
-    const Eigen::Isometry3d T0 = align_rigid(a, b);
-    nb.clear();
-    for (std::size_t i = 0; i < cs.size(); ++i) {
-      const Eigen::Vector3d n = T0.linear() * na[i];
-      nb.push_back((n - circles[i].normals[0]).norm() < (n - circles[i].normals[1]).norm()
-                       ? circles[i].normals[0] : circles[i].normals[1]);
+    std::vector<Eigen::Matrix3d> references{align_rigid(a, b).linear()};
+    if (!candidates.empty()) references.push_back(candidates.front().first.linear());
+    for (const Eigen::Matrix3d& R : references) {
+      for (std::size_t i = 0; i < cs.size(); ++i) {
+        const Eigen::Vector3d n = R * na[i];
+        choice[i] = (n - circles[i].normals[1]).norm() < (n - circles[i].normals[0]).norm();
+      }
+      double cost = 0.0;
+      Eigen::Isometry3d T = align_with(choice, &cost);
+      for (bool improved = true; improved;) {
+        improved = false;
+        for (std::size_t i = 0; i < cs.size(); ++i) {
+          choice[i] = !choice[i];
+          double flipped_cost = 0.0;
+          const Eigen::Isometry3d flipped = align_with(choice, &flipped_cost);
+          if (flipped_cost < cost) {
+            cost = flipped_cost;
+            T = flipped;
+            improved = true;
+          } else {
+            choice[i] = !choice[i];
+          }
+        }
+      }
+      keep(T, cost);
     }
-    candidates.emplace_back(align_rigid(a, b, na, nb), how);
   }
+  candidates.emplace_back(best_T, how);
   return candidates;
 }
 
 /// Start poses from one view of three or more holes: its LIDAR centres aligned with the
 /// ellipses' circle centres under every pairing (up to 7 holes), the best few kept. A
 /// symmetric layout fits several pairings equally; the views together tell them apart.
-std::vector<Eigen::Isometry3d> view_pairing_starts(const ViewHoles& v, const core::PinholeCamera& camera) {
+std::vector<Eigen::Isometry3d> view_pairing_starts(const ViewHoles& v) {
   const std::size_t n = v.centers.size();
   if (n < 3 || v.ellipses.size() < n || v.ellipses.size() > 7) return {};
   std::vector<Eigen::Vector3d> circle_centers;
-  for (const auto& e : v.ellipses) circle_centers.push_back(circle_from_ellipse(e, v.radius_m, camera).center);
+  for (const auto& c : v.circles) circle_centers.push_back(c.center);
   std::vector<std::size_t> perm(v.ellipses.size());
   std::iota(perm.begin(), perm.end(), std::size_t{0});
   std::vector<std::pair<double, Eigen::Isometry3d>> fits;
@@ -300,8 +336,11 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
         h.normals.push_back(v.lidar_normals[k].normalized());
       }
     }
-    for (const auto& e : v.image_ellipses)
-      if (e.size.width > 1.0f && e.size.height > 1.0f) h.ellipses.push_back(e);
+    for (const auto& e : v.image_ellipses) {
+      if (!(e.size.width > 1.0f && e.size.height > 1.0f)) continue;
+      h.ellipses.push_back(e);
+      h.circles.push_back(circle_from_ellipse(e, h.radius_m, camera));
+    }
     if (!h.centers.empty() && !h.ellipses.empty()) holes.push_back(std::move(h));
   }
   const Pairing by_index = index_pairing(holes);
@@ -341,7 +380,7 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
   std::vector<Eigen::Isometry3d> starts;
   for (const auto& s : solutions) starts.push_back(s.T);
   for (const auto& h : holes)
-    for (const auto& T : view_pairing_starts(h, camera)) starts.push_back(T);
+    for (const auto& T : view_pairing_starts(h)) starts.push_back(T);
   for (const auto& T : starts) {
     if (const auto p = pairing_at(holes, camera, T)) evaluate(*p);
   }
@@ -388,7 +427,7 @@ InitialGuessResult closed_form_initial_guess(const std::vector<TargetView>& view
   out.T_camera_lidar = best.T;
   double sum2 = 0.0;
   const std::vector<Correspondence> cs = correspondences(holes, best.pairing);
-  for (const auto& c : cs) sum2 += (best.T * c.center_lidar - circle_from_ellipse(c.ellipse, c.radius_m, camera).center).squaredNorm();
+  for (const auto& c : cs) sum2 += (best.T * c.center_lidar - c.circle.center).squaredNorm();
   out.rms_center_m = std::sqrt(sum2 / static_cast<double>(cs.size()));
   out.num_correspondences = static_cast<int>(cs.size());
   std::ostringstream os;
