@@ -217,6 +217,30 @@ void keep_faster(RunResult* best, RunResult&& r, bool first) {
   if (first || total(r).cpu < total(*best).cpu) *best = std::move(r);
 }
 
+/// The solve's parts summed over the cameras [ms wall] (EdgeAlignmentResult::stage_times):
+/// the initial guess, the exact fields and the covariance are the same code for both
+/// methods; the paper's LUTs and each method's alignment rounds are its own.
+void print_solve_parts(const RunResult& ours, const RunResult& paper) {
+  using Times = ext::EdgeAlignmentResult::StageTimes;
+  const auto sum = [](const RunResult& r, double Times::*part) {
+    double s = 0.0;
+    for (const auto& [name, res] : r.results) s += res.stage_times.*part;
+    return 1e3 * s;
+  };
+  const std::pair<const char*, double Times::*> parts[] = {
+      {"initial guess (shared)", &Times::initial_guess_s},
+      {"exact edge fields (shared)", &Times::fields_s},
+      {"paper's plane-fit LUTs", &Times::paper_luts_s},
+      {"alignment (own method)", &Times::alignment_s},
+      {"covariance (shared)", &Times::covariance_s}};
+  std::printf("\n%-28s | %10s | %10s\n", "solve by part (wall, ms)", "ours", "paper");
+  for (const auto& [label, part] : parts) std::printf("%-28s | %10.2f | %10.2f\n", label, sum(ours, part), sum(paper, part));
+  const double own_ours = sum(ours, &Times::alignment_s);
+  const double own_paper = sum(paper, &Times::paper_luts_s) + sum(paper, &Times::alignment_s);
+  std::printf("the methods' own parts (paper: LUTs + alignment; ours: alignment), paper / ours: %.0fx\n",
+              own_paper / own_ours);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -278,6 +302,7 @@ int main(int argc, char** argv) {
   const double ratio_wall = paper.stage[kSolve].wall / ours.stage[kSolve].wall;
   const double ratio_cpu = paper.stage[kSolve].cpu / ours.stage[kSolve].cpu;
   std::printf("\nsolve, paper / ours: %.0fx wall, %.0fx CPU (target >= 100x)\n", ratio_wall, ratio_cpu);
+  print_solve_parts(ours, paper);
 
   bool ok = ours.problem.empty() && app_exit == 0;
   const auto truth = read_truth(session_dir);

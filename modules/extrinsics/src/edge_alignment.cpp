@@ -74,6 +74,10 @@ using detail::SmoothView;
 using detail::transform_point;
 using detail::ViewEdgeCost;
 
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 /// Coarse stage: hole centres projected against the ellipse centres. Its basin is wide
 /// (a PnP refinement), so it brings a poor guess near enough for Eq. (2), whose
 /// nearest-edge attraction alone can shrink a far-off circle onto the near side of its
@@ -373,10 +377,11 @@ struct ViewFields {
   std::vector<std::vector<Eigen::Vector3d>> coarse_points;
 };
 
+/// Adds the wall time of the paper's LUTs to *paper_luts_s.
 ViewFields build_view_fields(const std::vector<TargetView>& views,
                              const std::vector<size_t>& usable_index,
                              const core::PinholeCamera& camera,
-                             const EdgeAlignmentOptions& options) {
+                             const EdgeAlignmentOptions& options, double* paper_luts_s) {
   const bool paper = options.method == EdgeAlignmentMethod::kPaperPlaneFit;
   ViewFields out;
   out.coarse_points.resize(usable_index.size());
@@ -386,8 +391,10 @@ ViewFields build_view_fields(const std::vector<TargetView>& views,
     // methods are reported on the same scale.
     out.fields.push_back(std::make_unique<SmoothView>(v.image_edge_points_px, options.field));
     if (paper) {
+      const auto t0 = std::chrono::steady_clock::now();
       out.luts.push_back(std::make_unique<PaperPlaneLut>(v.image_edge_points_px, camera.width(),
                                                          camera.height(), options.paper_window_px));
+      *paper_luts_s += seconds_since(t0);
     } else if (options.coarse_stride > 1) {
       const auto& all = v.lidar_circle_points;
       for (size_t i = 0; i < all.size(); i += static_cast<size_t>(options.coarse_stride))
@@ -715,12 +722,18 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
     throw std::invalid_argument("align_edges: invalid options: " + why);
   }
   EdgeAlignmentResult result;
+  EdgeAlignmentResult::StageTimes& times = result.stage_times;
   const std::vector<size_t> usable_index = label_views(views, camera, &result);
+  auto t0 = std::chrono::steady_clock::now();
   set_initial_pose(views, usable_index, camera, T_camera_lidar_guess, &result);
+  times.initial_guess_s = seconds_since(t0);
 
   const ProjectionModel cam = detail::make_projection_model(camera);
   const bool paper = options.method == EdgeAlignmentMethod::kPaperPlaneFit;
-  const ViewFields fields = build_view_fields(views, usable_index, camera, options);
+  t0 = std::chrono::steady_clock::now();
+  const ViewFields fields = build_view_fields(views, usable_index, camera, options, &times.paper_luts_s);
+  times.fields_s = seconds_since(t0) - times.paper_luts_s;
+  t0 = std::chrono::steady_clock::now();
   core::Vector6d x = core::to_vector6(result.T_camera_lidar_initial);
   if (options.coarse_center_stage && !paper) {
     result.iterations += align_hole_centers(views, usable_index, cam, &x);
@@ -749,14 +762,16 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
 
   result.T_camera_lidar = core::from_vector6(x);
   const size_t count = set_overall_rms(state, &result);
+  times.alignment_s = seconds_since(t0);
   if (options.compute_covariance && count > 6) {
+    t0 = std::chrono::steady_clock::now();
     set_covariance(problem, state, x, &result, &message);
+    times.covariance_s = seconds_since(t0);
   }
 
   message << (paper ? "paper plane-fit LUT" : "smooth field") << ", " << polish_report;
   result.message = message.str();
-  result.solve_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  result.solve_time_s = seconds_since(t_start);
   return result;
 }
 

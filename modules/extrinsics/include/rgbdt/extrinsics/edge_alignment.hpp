@@ -110,6 +110,15 @@ struct EdgeAlignmentResult {
   double rms_px = 0.0;         ///< RMS point-to-edge distance over the used views [px]
   std::vector<ViewResidual> views;  ///< same order as the input views
   double solve_time_s = 0.0;   ///< wall time of the whole call
+  /// Wall time [s] of the call's steps (the rest of solve_time_s is checks and copies).
+  struct StageTimes {
+    double initial_guess_s = 0.0;  ///< the closed-form start (0 when a guess is given)
+    double fields_s = 0.0;         ///< the exact edge fields, which both methods read
+    double paper_luts_s = 0.0;     ///< the paper's plane-fit LUTs (its method only)
+    double alignment_s = 0.0;      ///< hole centres, the rounds of Eq. (2), view fits, rejection
+    double covariance_s = 0.0;     ///< the covariance at the solution
+  };
+  StageTimes stage_times;
   std::string message;         ///< why the solver stopped, outliers, etc.
 
   /// Indices of views rejected as outliers or unusable.
