@@ -102,8 +102,8 @@ TEST(ArtBpCalibration, TwoViewsAreWarnedAndTheirCovarianceHoldsTheAuthorsResult)
 }
 
 TEST(ArtBpCalibration, MatchesTheAuthorsResult) {
-  // Skipped until the detectors find the target in all three views (art_bp_detection_test.cpp:
-  // the mid view's image holes and its LIDAR plane); RGBDT_RUN_KNOWN_FAILURES=1 runs it.
+  // Skipped until the image detector finds the mid view's holes (art_bp_detection_test.cpp);
+  // RGBDT_RUN_KNOWN_FAILURES=1 runs it.
   if (const char* v = std::getenv("RGBDT_RUN_KNOWN_FAILURES"); v == nullptr || std::string(v) != "1") {
     GTEST_SKIP() << "known failure: the target is found in 2 of the 3 images, and 2 views of the "
                     "4-hole board leave the pose 2.7 deg and 12 cm from the authors' (within our "

@@ -202,11 +202,6 @@ TEST_P(ArtBpPose, LidarFindsTheFourHolesInTheirLayout) {
   const core::CalibrationSession s = load_session();
   ASSERT_EQ(s.views.size(), kPoses.size());
   const int v = GetParam();
-  if (v == 1) {
-    SKIP_KNOWN_FAILURE(
-        "mid: calib_targets::detect_target_in_cloud accepts a plane 4.2-4.5 m away (centres "
-        "near (1.1, -4.2, 0.6) m, the 'rows' vertical) instead of the board at 2.5 m");
-  }
   const ct::LidarTargetDetection d = detect_lidar(s, v);
   ASSERT_TRUE(d.ok) << kPoses[v] << ": " << d.reason;
   ASSERT_EQ(d.holes.size(), 4u);
@@ -263,13 +258,6 @@ TEST_P(ArtBpPose, LidarHolesLandOnTheImageHolesUnderTheAuthorsExtrinsic) {
   const core::CalibrationSession s = load_session();
   ASSERT_EQ(s.views.size(), kPoses.size());
   const int v = GetParam();
-  if (v == 1) SKIP_KNOWN_FAILURE("mid: the LIDAR detection picks a far plane (see LidarFindsTheFourHolesInTheirLayout)");
-  if (v == 2) {
-    SKIP_KNOWN_FAILURE(
-        "right hole 3 (bottom right): its LIDAR centre projects 10.9 px from the ArUco hole, "
-        "about 2 cm, mostly horizontal: it sits 2.1 cm right of hole 1 above it on an upright "
-        "board (holes 0 and 2 agree to 0.1 mm)");
-  }
   const ct::LidarTargetDetection lidar = detect_lidar(s, v);
   ASSERT_TRUE(lidar.ok && lidar.holes.size() == 4) << kPoses[v] << " LIDAR: " << lidar.reason;
   const core::PinholeCamera camera(core::read_camera_info(s.cameras.at("rgb").intrinsics));
