@@ -35,6 +35,19 @@ Vector6d to_vector6(const Eigen::Isometry3d& T) {
   return v;
 }
 
+Vector6d to_vector6_near(const Eigen::Isometry3d& T, const Vector6d& reference) {
+  Vector6d v = to_vector6(T);
+  const double angle = v.head<3>().norm();
+  if (angle < 1e-12) return v;
+  const Eigen::Vector3d turn = v.head<3>() * (2.0 * M_PI / angle);
+  Eigen::Vector3d best = v.head<3>();
+  for (const Eigen::Vector3d& candidate : {Eigen::Vector3d(v.head<3>() - turn), Eigen::Vector3d(v.head<3>() + turn)}) {
+    if ((candidate - reference.head<3>()).norm() < (best - reference.head<3>()).norm()) best = candidate;
+  }
+  v.head<3>() = best;
+  return v;
+}
+
 Eigen::Matrix3d rotation_from_rpy(double roll, double pitch, double yaw) {
   return (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
           Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *

@@ -26,6 +26,27 @@ TEST(Transform, Vector6RoundTripIsExact) {
   }
 }
 
+// Two rotations 0.004 rad apart across a half turn: to_vector6 puts them on opposite sides
+// (vectors about 2 pi apart); to_vector6_near gives the one's rotation vector next to the
+// other's, the same rotation, 0.004 rad from it. Elsewhere it is to_vector6 itself.
+TEST(Transform, Vector6NearAReferenceStaysInItsChartAcrossAHalfTurn) {
+  const Eigen::Vector3d axis = Eigen::Vector3d(0, 1, -1).normalized();
+  const Eigen::Isometry3d a = make_transform(Eigen::AngleAxisd(M_PI - 0.002, axis).toRotationMatrix(), {0.1, 0.2, 0.3});
+  const Eigen::Isometry3d b = make_transform(Eigen::AngleAxisd(M_PI + 0.002, axis).toRotationMatrix(), {0.1, 0.2, 0.3});
+  const Vector6d xa = to_vector6(a);
+  EXPECT_GT((to_vector6(b) - xa).head<3>().norm(), 6.0);
+  const Vector6d xb = to_vector6_near(b, xa);
+  EXPECT_NEAR((xb - xa).head<3>().norm(), 0.004, 1e-9);
+  EXPECT_LT(rotation_error_rad(from_vector6(xb), b), 1e-12);
+  EXPECT_EQ(xb.tail<3>(), xa.tail<3>());
+  std::mt19937 rng(3);
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Isometry3d T = random_pose(rng);
+    if (to_vector6(T).head<3>().norm() > 2.5) continue;  // away from the half turn
+    EXPECT_EQ(to_vector6_near(T, to_vector6(T * from_vector6(Vector6d::Constant(0.01)))), to_vector6(T));
+  }
+}
+
 TEST(Transform, RotationVectorMatchesAngleAxis) {
   const Eigen::Vector3d axis = Eigen::Vector3d(1, 2, 3).normalized();
   const Eigen::Matrix3d R = rotation_from_vector(axis * 0.7);

@@ -20,6 +20,11 @@ using Matrix6d = Eigen::Matrix<double, 6, 6>;
 Eigen::Isometry3d from_vector6(const Vector6d& v);
 /// transform -> [rx ry rz tx ty tz], with the rotation angle in [0, pi].
 Vector6d to_vector6(const Eigen::Isometry3d& T);
+/// to_vector6(T) with the rotation vector, among those of the same rotation (its axis times
+/// angle + 2 pi k), the one nearest `reference`'s. Near a half turn two rotation vectors of
+/// length about pi on opposite sides stand for nearby rotations; a difference of vectors,
+/// or a covariance of them, means something only with both in one chart.
+Vector6d to_vector6_near(const Eigen::Isometry3d& T, const Vector6d& reference);
 
 /// Rotation vector (axis * angle [rad]) <-> rotation matrix.
 Eigen::Matrix3d rotation_from_vector(const Eigen::Vector3d& rotation_vector);
