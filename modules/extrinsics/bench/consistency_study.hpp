@@ -72,7 +72,7 @@ struct CaseResult {
   bool ok = false;
   std::string reason;  ///< why the case did not produce a scored solution
   int views_used = 0;
-  core::Vector6d error = core::Vector6d::Zero();  ///< to_vector6(estimate) - to_vector6(truth)
+  core::Vector6d error = core::Vector6d::Zero();  ///< to_vector6(estimate) - the truth in its chart
   double nees = 0.0, nees_jacobian = 0.0;
   double err_rot_deg = 0.0, err_trans_cm = 0.0;      ///< |error| rotation, translation
   double sigma_rot_deg = 0.0, sigma_trans_cm = 0.0;  ///< sqrt(trace) of the blocks (total)
@@ -194,7 +194,8 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir,
       out.reason = "covariance not valid: " + r.message;
       return out;
     }
-    out.error = core::to_vector6(r.T_camera_lidar) - core::to_vector6(truth);
+    const core::Vector6d estimate = core::to_vector6(r.T_camera_lidar);  // the covariance's chart
+    out.error = estimate - core::to_vector6_near(truth, estimate);
     out.nees = nees(out.error, r.covariance);
     out.nees_jacobian = nees(out.error, r.covariance_terms.jacobian);
     out.err_rot_deg = detail::rot_deg(out.error);

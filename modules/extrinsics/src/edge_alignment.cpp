@@ -761,6 +761,11 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   }
 
   result.T_camera_lidar = core::from_vector6(x);
+  // The covariance belongs to the rotation vector the YAML writes (to_vector6, angle <= pi).
+  // A solve near a half turn can end past pi, in the other chart, where the directions across
+  // the axis point the opposite way: the covariance would pair rotation and translation
+  // with the wrong signs.
+  x = core::to_vector6(result.T_camera_lidar);
   const size_t count = set_overall_rms(state, &result);
   times.alignment_s = seconds_since(t0);
   if (options.compute_covariance && count > 6) {

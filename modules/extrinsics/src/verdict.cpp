@@ -222,7 +222,6 @@ void check_agreement(const std::vector<TargetView>& views, const core::PinholeCa
   }
   EdgeAlignmentOptions opts = o.alignment;
   opts.reject_outlier_views = false;
-  const core::Vector6d x = core::to_vector6(r.T_camera_lidar);
   double mean_depth = 0;
   for (int k : used) mean_depth += v.views[k].board_depth_m / used.size();
   std::vector<double> moves;  // [cm at the mean board depth]
@@ -258,7 +257,8 @@ void check_agreement(const std::vector<TargetView>& views, const core::PinholeCa
     vv.lovo_rotation_deg = rot * 180.0 / M_PI;
     vv.lovo_translation_cm = core::translation_error_m(rk.T_camera_lidar, r.T_camera_lidar) * 100.0;
     if (rk.covariance_valid) {
-      const core::Vector6d d = core::to_vector6(rk.T_camera_lidar) - x;
+      const core::Vector6d xk = core::to_vector6(rk.T_camera_lidar);  // rk.covariance's chart
+      const core::Vector6d d = xk - core::to_vector6_near(r.T_camera_lidar, xk);
       vv.lovo_mahalanobis2 = d.dot(rk.covariance.ldlt().solve(d));
     }
     v.lovo_max_rotation_deg = std::max(v.lovo_max_rotation_deg, vv.lovo_rotation_deg);
