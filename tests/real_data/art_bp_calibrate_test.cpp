@@ -82,32 +82,37 @@ const CalibrationRun& calibrate_once() {
   return run;
 }
 
-// What the data supports today: the image detector finds the board in the left and right
-// views (the mid view's right-hand holes are split by a white stripe behind them), so the
-// solve has two views of a 4-hole board. That is a usable but weak calibration: the verdict
-// must say WARN (not PASS), and its covariance must be honest: the authors' result inside
-// our 99.9 % ellipsoid (chi-square, 6 degrees of freedom: 22.46).
-TEST(ArtBpCalibration, TwoViewsAreWarnedAndTheirCovarianceHoldsTheAuthorsResult) {
+// The target is found in all three views, but the three boards stand at one height and
+// 2.3-2.5 m away: a pitch of the LIDAR and a vertical shift that keep the boards in place
+// are told apart by the holes' perspective alone. That is a usable but weak calibration:
+// the verdict must say WARN (not PASS), and its covariance must be honest: the authors'
+// result inside our 99.9 % ellipsoid (chi-square, 6 degrees of freedom: 22.46). T is near a
+// half turn here, which also checks that the covariance is in the chart of the written
+// rotation vector.
+TEST(ArtBpCalibration, ThreeViewsAreWarnedAndTheirCovarianceHoldsTheAuthorsResult) {
   const fs::path session = ART_BP_SESSION_DIR;
   ASSERT_TRUE(fs::exists(session / "session.yaml"))
       << "missing " << session / "session.yaml" << ": run the fixture (ctest -R real_data_art_bp_session)";
   const CalibrationRun& r = calibrate_once();
   ASSERT_TRUE(r.exited_ok) << "rgbdt_calibrate failed:\n" << r.output << "\nreport.md:\n" << read_all(r.out / "report.md");
+  EXPECT_NE(r.output.find("calibrating rgb from 3 views"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("verdict: WARN"), std::string::npos) << r.output;
   ASSERT_TRUE(r.covariance.has_value()) << "extrinsics_rgb.yaml has no covariance";
-  const core::Vector6d d = core::to_vector6(r.ours) - core::to_vector6(r.theirs);
+  // In the chart of our rotation vector, which the covariance is in (T is near a half turn).
+  const core::Vector6d ours = core::to_vector6(r.ours);
+  const core::Vector6d d = ours - core::to_vector6_near(r.theirs, ours);
   const double nees = d.dot(r.covariance->ldlt().solve(d));
   std::printf("authors' result against our covariance: squared Mahalanobis %.2f (99.9 %%: 22.46)\n", nees);
   EXPECT_LE(nees, 22.46);
 }
 
 TEST(ArtBpCalibration, MatchesTheAuthorsResult) {
-  // Skipped until the image detector finds the mid view's holes (art_bp_detection_test.cpp);
+  // Skipped while three views at one depth cannot pin the pitch (see the test above);
   // RGBDT_RUN_KNOWN_FAILURES=1 runs it.
   if (const char* v = std::getenv("RGBDT_RUN_KNOWN_FAILURES"); v == nullptr || std::string(v) != "1") {
-    GTEST_SKIP() << "known failure: the target is found in 2 of the 3 images, and 2 views of the "
-                    "4-hole board leave the pose 2.7 deg and 12 cm from the authors' (within our "
-                    "reported uncertainty, see the test above)";
+    GTEST_SKIP() << "known failure: 3 views of the 4-hole board at 2.3-2.5 m leave the pose 2.9 deg and "
+                    "12.9 cm from the authors', along the pitch and vertical shift our covariance marks "
+                    "weak (the authors' result lies inside it, see the test above)";
   }
   const CalibrationRun& r = calibrate_once();
   ASSERT_TRUE(r.exited_ok) << r.output;

@@ -16,7 +16,6 @@
 #include <gtest/gtest.h>
 
 #include <array>
-#include <cstdlib>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -59,21 +58,6 @@ constexpr double kRadiusTolM = 0.02;
 // Holes of one board lie in one plane within the ring noise (Hesai: ~2 cm range noise,
 // averaged over the ~20 edge points of a hole): 2 cm.
 constexpr double kPlanarityTolM = 0.02;
-
-// Steps that fail on this data today, each with what fails; the test skips them unless
-// RGBDT_RUN_KNOWN_FAILURES=1 (set it to check a fix). Empty once the detectors handle it.
-bool run_known_failures() {
-  const char* v = std::getenv("RGBDT_RUN_KNOWN_FAILURES");
-  return v != nullptr && std::string(v) == "1";
-}
-#define SKIP_KNOWN_FAILURE(reason) \
-  if (!run_known_failures()) GTEST_SKIP() << "known failure (RGBDT_RUN_KNOWN_FAILURES=1 runs it): " << reason
-
-const char* const kImageDetectionFails =
-    "calib_targets::detect_target_in_image finds no 4-hole set in the mid view (a white stripe "
-    "behind the right-hand holes splits each of them in two, so neither the hole search nor "
-    "the board's own outlines give those holes whole): 'no set of 4 holes matches the "
-    "target's layout'";
 
 fs::path session_dir() { return fs::path(ART_BP_SESSION_DIR); }
 
@@ -233,7 +217,6 @@ TEST_P(ArtBpPose, ImageFindsTheFourHoles) {
   for (int k = 0; k < 4; ++k)
     std::printf("[%s] hole %d: ArUco (%s) puts it at [%.1f %.1f] px\n", kPoses[v], k,
                 aruco->dictionary.c_str(), aruco->holes_px[k].x(), aruco->holes_px[k].y());
-  if (v == 1) SKIP_KNOWN_FAILURE(kImageDetectionFails);
   const ct::ImageTargetDetection d = detect_image(s, v);
   ASSERT_TRUE(d.ok) << kPoses[v] << ": " << d.reason;
   ASSERT_EQ(d.holes.size(), 4u);

@@ -5,6 +5,7 @@
 #include <deque>
 #include <functional>
 #include <numeric>
+#include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -872,6 +873,90 @@ bool trace_holes(const cv::Mat& f, const std::vector<Candidate>& chosen, const H
   return true;
 }
 
+/// Fraction of the rays that must find the board's edge on a predicted hole's ellipse: less
+/// than a found hole needs (0.6), since the layout already puts it there and it must land
+/// within half a radius of that place at the size the found pair gives; a bright stripe of
+/// the background across the hole takes the rays on both its sides (about half of them).
+constexpr double kPredictedHoleSupport = 0.4;
+
+/// The hole a prediction makes, if any: `like`'s ellipse moved to `at` and refined by the
+/// board's edge around it (refine_board_hole), kept when enough rays find that edge on its
+/// ellipse, it stays within half a radius of `at` at about the expected radius r_px, and
+/// the board around it is homogeneous.
+std::optional<Candidate> predicted_hole(const cv::Mat& f, const HoleSearch& search, const ImageDetectionOptions& o,
+                                        Candidate c, const Eigen::Vector2d& at, double r_px) {
+  if (at.x() - 1.8 * r_px < 1 || at.y() - 1.8 * r_px < 1 || at.x() + 1.8 * r_px > f.cols - 2 ||
+      at.y() + 1.8 * r_px > f.rows - 2) {
+    return std::nullopt;
+  }
+  c.ellipse.center = cv::Point2f(static_cast<float>(at.x()), static_cast<float>(at.y()));
+  c.board_side = true;
+  const double support = refine_board_hole(f, o, &c);
+  const double a = 0.5 * std::max(c.ellipse.size.width, c.ellipse.size.height);
+  const double b = 0.5 * std::min(c.ellipse.size.width, c.ellipse.size.height);
+  if (support < kPredictedHoleSupport || !(b > 0) || b / a < o.min_axis_ratio || a > search.max_axis ||
+      a < search.min_axis || a < 0.7 * r_px || a > 1.4 * r_px) {
+    return std::nullopt;
+  }
+  if (std::hypot(c.ellipse.center.x - at.x(), c.ellipse.center.y - at.y()) > 0.5 * r_px) return std::nullopt;
+  double spread = 0.0;
+  if (!levels(f, c.ellipse, &c.inside, &c.outside, &spread)) return std::nullopt;
+  const double contrast = std::abs(c.outside - c.inside);
+  if (contrast < o.min_contrast || spread > 0.35 * contrast) return std::nullopt;
+  c.score = support;
+  return c;
+}
+
+/// Holes the layout predicts from two found ones, for a board whose other holes neither
+/// search gives whole (a bright stripe of the background behind them splits each in two).
+/// Each pair of candidates of about one size (of the best 40), taken as two of the layout's
+/// holes, fixes a similarity board -> image (board y up, within 45 deg of `up`) whose scale
+/// must make both of them holes of the target's radius; it puts the layout's other holes,
+/// which predicted_hole checks in the image.
+std::vector<Candidate> layout_predicted_candidates(const cv::Mat& f, const HoleSearch& search,
+                                                   const std::vector<Candidate>& cand, double radius_m,
+                                                   const ImageDetectionOptions& o) {
+  std::vector<Candidate> out;
+  const std::vector<Eigen::Vector2d>& layout = search.layout;
+  const std::size_t k = std::min<std::size_t>(cand.size(), 40);
+  const Eigen::Vector2d up = o.up_image.normalized();
+  const auto centre = [](const Candidate& c) { return Eigen::Vector2d(c.ellipse.center.x, c.ellipse.center.y); };
+  const auto semi_major = [](const Candidate& c) { return 0.5 * std::max(c.ellipse.size.width, c.ellipse.size.height); };
+  const auto flip = [](const Eigen::Vector2d& b) { return Eigen::Vector2d(b.x(), -b.y()); };  // image v is down
+  const auto taken = [&](const Eigen::Vector2d& q, double r) {
+    const std::vector<Candidate>* lists[] = {&cand, &out};
+    for (const std::vector<Candidate>* list : lists)
+      for (const Candidate& c : *list)
+        if ((centre(c) - q).norm() < 0.5 * r) return true;
+    return false;
+  };
+  for (std::size_t i = 0; i < k; ++i) {
+    for (std::size_t j = 0; j < k; ++j) {
+      const double ai = semi_major(cand[i]), aj = semi_major(cand[j]);
+      if (i == j || std::abs(ai - aj) > 0.3 * ai) continue;  // holes of one board: about one size
+      const Eigen::Vector2d d_image = centre(cand[j]) - centre(cand[i]);
+      for (std::size_t p = 0; p < layout.size(); ++p) {
+        for (std::size_t q = 0; q < layout.size(); ++q) {
+          if (p == q) continue;
+          const Eigen::Vector2d d_board = flip(layout[q] - layout[p]);
+          const double scale = d_image.norm() / d_board.norm();  // px per m
+          const double r_px = scale * radius_m;
+          if (std::min(ai, aj) < 0.7 * r_px || std::max(ai, aj) > 1.4 * r_px) continue;
+          const Eigen::Rotation2Dd R(std::atan2(d_image.y(), d_image.x()) - std::atan2(d_board.y(), d_board.x()));
+          if ((R * Eigen::Vector2d(0.0, -1.0)).dot(up) <= std::sqrt(0.5)) continue;  // board y up
+          for (std::size_t m = 0; m < layout.size(); ++m) {
+            if (m == p || m == q) continue;
+            const Eigen::Vector2d at = centre(cand[i]) + scale * (R * flip(layout[m] - layout[p]));
+            if (taken(at, r_px)) continue;
+            if (const auto hole = predicted_hole(f, search, o, cand[i], at, r_px)) out.push_back(*hole);
+          }
+        }
+      }
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::TargetSpec& target,
@@ -926,10 +1011,21 @@ ImageTargetDetection detect_target_in_image(const cv::Mat& image, const core::Ta
   }
   std::string why;
   const bool seeded_board = seed_px && search.layout.size() > 1;
-  const auto pick = match_layout_image(search.layout, cand, options.up_image.normalized(), &why,
-                                       seeded_board ? seed_px : std::nullopt,
-                                       seeded_board ? board_half_extent(target, search.layout) : Eigen::Vector2d::Zero(),
-                                       target.radius_m, 20);
+  const auto match = [&] {
+    return match_layout_image(search.layout, cand, options.up_image.normalized(), &why,
+                              seeded_board ? seed_px : std::nullopt,
+                              seeded_board ? board_half_extent(target, search.layout) : Eigen::Vector2d::Zero(),
+                              target.radius_m, 20);
+  };
+  std::vector<int> pick = match();
+  if (pick.empty() && search.layout.size() > 1 && cand.size() >= 2) {
+    // Some holes not whole in either search: the ones the found holes and the layout predict.
+    const std::vector<Candidate> predicted = layout_predicted_candidates(f, search, cand, target.radius_m, options);
+    if (!predicted.empty()) {
+      cand.insert(cand.begin(), predicted.begin(), predicted.end());  // within the match's pool
+      pick = match();
+    }
+  }
   for (int i : pick) chosen.push_back(cand[static_cast<std::size_t>(i)]);
   if (pick.empty() || !trace_holes(f, chosen, search, seed_px, options, &det)) {
     det.ok = false;
