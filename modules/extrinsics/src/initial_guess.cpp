@@ -220,12 +220,10 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
   }
 
   // (B) Circle poses from the ellipses, aligned with the LIDAR centres and normals.
-  std::vector<CircleInCamera> circles;
-  for (const auto& c : cs) circles.push_back(c.circle);
   std::vector<Eigen::Vector3d> a, b, na;
   for (std::size_t i = 0; i < cs.size(); ++i) {
     a.push_back(cs[i].center_lidar);
-    b.push_back(circles[i].center);
+    b.push_back(cs[i].circle.center);
     na.push_back(cs[i].normal_lidar);
   }
   // Each ellipse has two circle normals. Few holes: every choice (2^n alignments). More: the
@@ -240,7 +238,7 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
   };
   std::vector<Eigen::Vector3d> nb_of(cs.size());
   const auto align_with = [&](const std::vector<bool>& choice, double* cost) {
-    for (std::size_t i = 0; i < cs.size(); ++i) nb_of[i] = circles[i].normals[choice[i] ? 1 : 0];
+    for (std::size_t i = 0; i < cs.size(); ++i) nb_of[i] = cs[i].circle.normals[choice[i] ? 1 : 0];
     const Eigen::Isometry3d T = align_rigid(a, b, na, nb_of);
     *cost = alignment_cost(T, nb_of);
     return T;
@@ -268,7 +266,7 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
     for (const Eigen::Matrix3d& R : references) {
       for (std::size_t i = 0; i < cs.size(); ++i) {
         const Eigen::Vector3d n = R * na[i];
-        choice[i] = (n - circles[i].normals[1]).norm() < (n - circles[i].normals[0]).norm();
+        choice[i] = (n - cs[i].circle.normals[1]).norm() < (n - cs[i].circle.normals[0]).norm();
       }
       double cost = 0.0;
       Eigen::Isometry3d T = align_with(choice, &cost);
