@@ -245,11 +245,23 @@ ViewCovarianceInput view_covariance_input(const ProjectionModel& cam, const Smoo
                                           const TargetView& view, const core::Vector6d& x,
                                           const std::vector<LidarHoleSigma>* sigma,
                                           double default_range_sigma_m) {
+  const std::size_t n = view.lidar_circle_points.size();
+  PointJacobians at_x;
+  at_x.uv.resize(2 * n);
+  at_x.r.resize(2 * n);
+  at_x.J.resize(12 * n);
+  ViewEdgeCost(&cam, &field, &view.lidar_circle_points, 0.0)
+      .evaluate_points(x.data(), at_x.uv.data(), at_x.r.data(), at_x.J.data());
+  return view_covariance_input(at_x, view, x, sigma, default_range_sigma_m);
+}
+
+ViewCovarianceInput view_covariance_input(const PointJacobians& at_x, const TargetView& view,
+                                          const core::Vector6d& x,
+                                          const std::vector<LidarHoleSigma>* sigma,
+                                          double default_range_sigma_m) {
   ViewCovarianceInput out;
   const std::vector<HoleCircle> holes = split_holes(view);
-  const std::size_t n = view.lidar_circle_points.size();
-  std::vector<double> uv(2 * n), r(2 * n), J(12 * n);
-  ViewEdgeCost(&cam, &field, &view.lidar_circle_points, 0.0).evaluate_points(x.data(), uv.data(), r.data(), J.data());
+  const std::vector<double>&uv = at_x.uv, &r = at_x.r, &J = at_x.J;
   const Eigen::Matrix3d R = core::from_vector6(x).linear();
   const bool caller_sigma = sigma != nullptr && sigma->size() == holes.size();
   for (std::size_t h = 0; h < holes.size(); ++h) {

@@ -29,6 +29,12 @@ ViewCovarianceInput view_covariance_input(const ProjectionModel& cam, const Smoo
                                           const TargetView& view, const core::Vector6d& x,
                                           const std::vector<LidarHoleSigma>* sigma,
                                           double default_range_sigma_m);
+/// The same from the view's points at x, already evaluated (as the solve's last pass
+/// records them: ViewEdgeCost::accumulate).
+ViewCovarianceInput view_covariance_input(const PointJacobians& at_x, const TargetView& view,
+                                          const core::Vector6d& x,
+                                          const std::vector<LidarHoleSigma>* sigma,
+                                          double default_range_sigma_m);
 
 /// The view's circle points with each hole's circle moved by one draw of its LIDAR error
 /// (centre shift and tilt of the normal, with the covariance `sigma` gives it, as in

@@ -224,14 +224,17 @@ std::vector<core::Vector6d> resampled_deviations(const std::vector<TargetView>& 
 /// The jackknife's solutions without each view in turn, from the solution x: one
 /// Gauss-Newton step on the other views' normal equations at x (CovarianceOptions::
 /// jackknife_one_step), else, or where that system is singular, an LM polish of them.
+/// at_x: each cost's normal equations at x when the solve's last pass left them (else null).
 std::vector<core::Vector6d> leave_one_view_out(const std::vector<std::unique_ptr<ViewEdgeCost>>& costs,
+                                               const std::vector<detail::NormalEquations>* at_x,
                                                const core::Vector6d& x, const EdgeAlignmentOptions& options) {
   std::vector<detail::NormalEquations> ne(costs.size());
   detail::NormalEquations all;
   if (options.covariance_model.jackknife_one_step) {
     detail::PointFit fit;
     for (size_t c = 0; c < costs.size(); ++c) {
-      costs[c]->accumulate(x.data(), &ne[c], &fit);
+      if (at_x != nullptr) ne[c] = (*at_x)[c];
+      else costs[c]->accumulate(x.data(), &ne[c], &fit);
       all += ne[c];
     }
   }
@@ -253,36 +256,57 @@ std::vector<core::Vector6d> leave_one_view_out(const std::vector<std::unique_ptr
   return out;
 }
 
+/// The solve's last pass over the active views (ours, coarse-to-fine), at x: the solution,
+/// or where the polish took its last, too short to evaluate, step from (PolishResult::
+/// x_evaluated). Per usable view, its normal equations and points, valid where the view was
+/// in that pass.
+struct PassAtSolution {
+  core::Vector6d x;
+  std::vector<detail::NormalEquations> normal_equations;
+  std::vector<detail::PointJacobians> points;
+};
+
 /// The covariance of the solution x (covariance.hpp) over the active views; the jackknife's
 /// leave-one-view-out solutions and the few-view re-solves use Eq. (2) (our cost, whatever
-/// the method) from x.
+/// the method) from x. at_x: the solve's last pass, or null (a pass here at x_solution);
+/// the covariance is taken where that pass was (within step_tolerance_sigma of the solution).
 CovarianceTerms covariance_at_solution(const std::vector<TargetView>& views,
                                        const std::vector<size_t>& usable_index,
                                        const std::vector<bool>& active,
                                        const std::vector<std::unique_ptr<SmoothView>>& all_fields,
-                                       const ProjectionModel& cam, const core::Vector6d& x,
-                                       const EdgeAlignmentOptions& options) {
+                                       const ProjectionModel& cam, const core::Vector6d& x_solution,
+                                       const EdgeAlignmentOptions& options, const PassAtSolution* at_x) {
+  const core::Vector6d& x = at_x != nullptr ? at_x->x : x_solution;
   const CovarianceOptions& model = options.covariance_model;
   std::vector<size_t> used;
   std::vector<const SmoothView*> fields;
   std::vector<const std::vector<LidarHoleSigma>*> sigmas;
+  std::vector<detail::NormalEquations> ne_at_x;
+  std::vector<const detail::PointJacobians*> points_at_x;
   for (size_t k = 0; k < usable_index.size(); ++k) {
     if (!active[k]) continue;
     const size_t i = usable_index[k];
     used.push_back(i);
     fields.push_back(all_fields[k].get());
     sigmas.push_back(i < model.per_view.size() ? &model.per_view[i] : nullptr);
+    if (at_x != nullptr) {
+      ne_at_x.push_back(at_x->normal_equations[k]);
+      points_at_x.push_back(&at_x->points[k]);
+    }
   }
   std::vector<detail::ViewCovarianceInput> inputs;
   std::vector<std::unique_ptr<ViewEdgeCost>> costs;
   for (size_t c = 0; c < used.size(); ++c) {
-    inputs.push_back(detail::view_covariance_input(cam, *fields[c], views[used[c]], x, sigmas[c],
-                                                   model.default_range_sigma_m));
+    inputs.push_back(at_x != nullptr ? detail::view_covariance_input(*points_at_x[c], views[used[c]], x, sigmas[c],
+                                                                     model.default_range_sigma_m)
+                                     : detail::view_covariance_input(cam, *fields[c], views[used[c]], x, sigmas[c],
+                                                                     model.default_range_sigma_m));
     costs.push_back(std::make_unique<ViewEdgeCost>(&cam, fields[c], &views[used[c]].lidar_circle_points,
                                                    options.huber_px));
   }
   std::vector<core::Vector6d> leave_one_out;
-  if (model.jackknife && costs.size() >= 3) leave_one_out = leave_one_view_out(costs, x, options);
+  if (model.jackknife && costs.size() >= 3)
+    leave_one_out = leave_one_view_out(costs, at_x != nullptr ? &ne_at_x : nullptr, x, options);
   std::vector<core::Vector6d> resampled;
   if (model.resamples > 0 && !used.empty() && used.size() < 3)
     resampled = resampled_deviations(views, used, fields, sigmas, cam, x, options);
@@ -477,54 +501,70 @@ struct RoundState {
   std::vector<size_t> count_of_view;
   // Fit of each view at this round's x, when the polish left it.
   std::vector<detail::PointFit> fit_at_x;
+  // The polish's last pass (ours with the covariance; else none): the active views' sums
+  // and points at x, so that the covariance needs no pass of its own.
+  std::optional<PassAtSolution> pass_at_x;
 };
+
+/// Our LM (detail::polish) from x over the active views, on each view's coarse subset or on
+/// all its circle points.
+detail::PolishResult polish_active_views(const AlignmentProblem& p, const RoundState& state, bool coarse,
+                                         const detail::PolishOptions& polish_options, const core::Vector6d& x) {
+  std::vector<std::unique_ptr<ViewEdgeCost>> costs;
+  std::vector<const ViewEdgeCost*> cost_pointers;
+  for (size_t k = 0; k < p.usable_index.size(); ++k) {
+    if (!state.active[k]) continue;
+    const auto& points = coarse ? p.fields.coarse_points[k] : p.views[p.usable_index[k]].lidar_circle_points;
+    costs.push_back(std::make_unique<ViewEdgeCost>(&p.cam, p.fields.fields[k].get(), &points, p.options.huber_px));
+    cost_pointers.push_back(costs.back().get());
+  }
+  return detail::polish(cost_pointers, x, polish_options);
+}
 
 /// One round of Eq. (2), ours coarse-to-fine, from *x over the active views: fills
 /// state->fit_at_x and *have_fit for them; returns the solve's report.
 std::string solve_coarse_then_polish(const AlignmentProblem& p, RoundState* state,
                                      std::vector<bool>* have_fit, core::Vector6d* x,
                                      EdgeAlignmentResult* result) {
-  const EdgeAlignmentOptions& options = p.options;
-  // Ceres' full LM from the (possibly poor) start on the coarse subset ...
-  ceres::Problem problem;
-  for (size_t k = 0; k < p.usable_index.size(); ++k) {
-    if (!state->active[k] || p.fields.coarse_points[k].empty()) continue;
-    problem.AddResidualBlock(new ViewEdgeCost(&p.cam, p.fields.fields[k].get(),
-                                              &p.fields.coarse_points[k], options.huber_px),
-                             nullptr, x->data());
-  }
-  ceres::Solver::Summary summary;
-  ceres::Solve(p.solver_options, &problem, &summary);
-  result->iterations += summary.num_successful_steps + summary.num_unsuccessful_steps;
-  // ... then our LM polishes on all points from inside the basin, with the same
-  // relative-step and gradient tolerances, on 6x6 normal equations accumulated point by
-  // point; its last evaluation also gives the per-view fit and the covariance's J^T J.
-  std::vector<std::unique_ptr<ViewEdgeCost>> costs;
-  std::vector<const ViewEdgeCost*> cost_pointers;
-  for (size_t k = 0; k < p.usable_index.size(); ++k) {
-    if (!state->active[k]) continue;
-    costs.push_back(std::make_unique<ViewEdgeCost>(&p.cam, p.fields.fields[k].get(),
-                                                   &p.views[p.usable_index[k]].lidar_circle_points,
-                                                   options.huber_px));
-    cost_pointers.push_back(costs.back().get());
-  }
-  detail::PolishOptions polish_options = polish_options_of(options);
+  // Levenberg-Marquardt from the (possibly poor) start on the coarse subset, then on all
+  // points from inside the basin, with the same tolerances, on 6x6 normal equations
+  // accumulated point by point; the last pass also gives the per-view fit and what the
+  // covariance reads.
+  detail::PolishOptions polish_options = polish_options_of(p.options);
   polish_options.gradient_tolerance = p.solver_options.gradient_tolerance;
-  detail::PolishResult polished = detail::polish(cost_pointers, *x, polish_options);
+  const detail::PolishResult coarse = polish_active_views(p, *state, true, polish_options, *x);
+  polish_options.keep_point_jacobians = p.options.compute_covariance;
+  detail::PolishResult polished = polish_active_views(p, *state, false, polish_options, coarse.x);
   *x = polished.x;
-  result->iterations += polished.iterations;
-  result->converged = summary.termination_type == ceres::CONVERGENCE && polished.converged;
+  result->iterations += coarse.iterations + polished.iterations;
+  result->converged = coarse.converged && polished.converged;
+  state->pass_at_x.reset();
+  if (polish_options.keep_point_jacobians) {
+    state->pass_at_x.emplace();
+    state->pass_at_x->x = polished.x_evaluated;
+    state->pass_at_x->normal_equations.resize(p.usable_index.size());
+    state->pass_at_x->points.resize(p.usable_index.size());
+  }
   size_t j = 0;
   for (size_t k = 0; k < p.usable_index.size(); ++k) {
     if (!state->active[k]) continue;
     state->fit_at_x[k] = std::move(polished.fits[j]);
     (*have_fit)[k] = true;
+    if (state->pass_at_x) {
+      state->pass_at_x->normal_equations[k] = polished.normal_equations[j];
+      state->pass_at_x->points[k] = std::move(polished.points[j]);
+    }
     ++j;
   }
   std::ostringstream report;
-  report << "coarse: " << summary.BriefReport() << "; all points: " << polished.iterations
-         << " iterations, cost " << polished.initial_cost << " -> " << polished.final_cost
-         << (polished.converged ? ", converged" : ", hit max_iterations");
+  const auto describe = [&report](const detail::PolishResult& r) {
+    report << r.iterations << " iterations, cost " << r.initial_cost << " -> " << r.final_cost
+           << (r.converged ? ", converged" : ", hit max_iterations");
+  };
+  report << "coarse (every " << p.options.coarse_stride << "th point): ";
+  describe(coarse);
+  report << "; all points: ";
+  describe(polished);
   return report.str();
 }
 
@@ -660,10 +700,11 @@ size_t set_overall_rms(const RoundState& state, EdgeAlignmentResult* result) {
   return count;
 }
 
+/// at_x: the solve's last pass at x, or null.
 void set_covariance(const AlignmentProblem& p, const RoundState& state, const core::Vector6d& x,
-                    EdgeAlignmentResult* result, std::ostringstream* message) {
+                    const PassAtSolution* at_x, EdgeAlignmentResult* result, std::ostringstream* message) {
   result->covariance_terms = covariance_at_solution(p.views, p.usable_index, state.active,
-                                                    p.fields.fields, p.cam, x, p.options);
+                                                    p.fields.fields, p.cam, x, p.options, at_x);
   result->covariance = result->covariance_terms.total;
   result->covariance_valid = result->covariance_terms.valid;
   if (!result->covariance_valid) {
@@ -764,13 +805,19 @@ EdgeAlignmentResult align_edges(const std::vector<TargetView>& views,
   // The covariance belongs to the rotation vector the YAML writes (to_vector6, angle <= pi).
   // A solve near a half turn can end past pi, in the other chart, where the directions across
   // the axis point the opposite way: the covariance would pair rotation and translation
-  // with the wrong signs.
-  x = core::to_vector6(result.T_camera_lidar);
+  // with the wrong signs. In the same chart (the round trip differs by rounding) the solve's
+  // last pass at x is the covariance's.
+  const auto in_written_chart = [](const core::Vector6d& v) {
+    return (core::to_vector6(core::from_vector6(v)) - v).norm() <= 1e-9 * (1.0 + v.norm());
+  };
+  const bool same_chart = in_written_chart(x) && (!state.pass_at_x || in_written_chart(state.pass_at_x->x));
+  if (!same_chart) x = core::to_vector6(result.T_camera_lidar);
   const size_t count = set_overall_rms(state, &result);
   times.alignment_s = seconds_since(t0);
   if (options.compute_covariance && count > 6) {
     t0 = std::chrono::steady_clock::now();
-    set_covariance(problem, state, x, &result, &message);
+    const PassAtSolution* at_x = same_chart && state.pass_at_x ? &*state.pass_at_x : nullptr;
+    set_covariance(problem, state, x, at_x, &result, &message);
     times.covariance_s = seconds_since(t0);
   }
 

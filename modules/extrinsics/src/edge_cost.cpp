@@ -5,43 +5,6 @@
 
 namespace rgbdt::extrinsics::detail {
 
-void SmoothView::evaluate(double u, double v, double f[2], double J[4]) const {
-  if (field.in_band(u, v)) {
-    if (J == nullptr) {
-      field.interpolate(u, v, f, nullptr, nullptr);
-      return;
-    }
-    double df_du[2], df_dv[2];
-    field.interpolate(u, v, f, df_du, df_dv);
-    J[0] = df_du[0];
-    J[1] = df_dv[0];
-    J[2] = df_du[1];
-    J[3] = df_dv[1];
-    return;
-  }
-  Eigen::Vector2d p, n;
-  field.nearest_edge({u, v}, &p, &n);
-  const double du = u - p.x(), dv = v - p.y();
-  if (n.squaredNorm() > 0.5) {
-    // f = n n^T (uv - p): the offset to the edge's tangent line.
-    const double along = du * n.x() + dv * n.y();
-    f[0] = along * n.x();
-    f[1] = along * n.y();
-    if (J != nullptr) {
-      J[0] = n.x() * n.x();
-      J[1] = J[2] = n.x() * n.y();
-      J[3] = n.y() * n.y();
-    }
-  } else {
-    f[0] = du;
-    f[1] = dv;
-    if (J != nullptr) {
-      J[0] = J[3] = 1.0;
-      J[1] = J[2] = 0.0;
-    }
-  }
-}
-
 ViewEdgeCost::ViewEdgeCost(const ProjectionModel* cam, const SmoothView* view,
                            const std::vector<Eigen::Vector3d>* points, double huber_px)
     : cam_(cam), view_(view), points_(points), huber_px_(huber_px) {
@@ -153,9 +116,16 @@ void ViewEdgeCost::evaluate_points(const double* x, double* uv_out, double* resi
   });
 }
 
-void ViewEdgeCost::accumulate(const double* x, NormalEquations* ne, PointFit* fit) const {
+void ViewEdgeCost::accumulate(const double* x, NormalEquations* ne, PointFit* fit,
+                              PointJacobians* points) const {
   fit->distances_px.resize(points_->size());
   fit->in_image = 0;
+  if (ne == nullptr) points = nullptr;  // no Jacobians in a residual-only pass
+  if (points != nullptr) {
+    points->uv.resize(2 * points_->size());
+    points->r.resize(2 * points_->size());
+    points->J.resize(12 * points_->size());
+  }
   // Sums in locals (registers), added to *ne once.
   core::Matrix6d JtJ = core::Matrix6d::Zero(), huber_excess = core::Matrix6d::Zero();
   core::Vector6d Jtr = core::Vector6d::Zero();
@@ -168,6 +138,15 @@ void ViewEdgeCost::accumulate(const double* x, NormalEquations* ne, PointFit* fi
                                   : std::numeric_limits<double>::infinity();
     fit->in_image += finite && e.uv[0] >= -0.5 && e.uv[1] >= -0.5 && e.uv[0] < u_end && e.uv[1] < v_end;
     if (ne == nullptr) return;
+    if (points != nullptr) {
+      // As evaluate_points() with no Huber loss: the plain offset and its Jacobian.
+      points->uv[2 * i] = e.in_front ? e.uv[0] : std::numeric_limits<double>::quiet_NaN();
+      points->uv[2 * i + 1] = e.in_front ? e.uv[1] : std::numeric_limits<double>::quiet_NaN();
+      points->r[2 * i] = e.f[0];
+      points->r[2 * i + 1] = e.f[1];
+      Eigen::Map<Eigen::Matrix<double, 2, 6, Eigen::RowMajor>>(points->J.data() + 12 * i) =
+          e.huber_active ? e.J_plain : e.J;
+    }
     // Upper triangles only (mirrored below): 21 of the 36 entries.
     for (int a = 0; a < 6; ++a) {
       for (int b = a; b < 6; ++b) JtJ(a, b) += e.J(0, a) * e.J(0, b) + e.J(1, a) * e.J(1, b);

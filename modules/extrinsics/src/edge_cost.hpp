@@ -44,12 +44,51 @@ struct SmoothView {
   SmoothView& operator=(const SmoothView&) = delete;
   /// Offset f (edge -> pixel) at (u, v) and, when J is given, df/d(u, v) (row-major 2x2):
   /// bicubic (value and exact gradient) in the band, the nearest-edge form outside it.
-  void evaluate(double u, double v, double f[2], double J[4]) const;
+  inline void evaluate(double u, double v, double f[2], double J[4]) const;
 
   EdgeDistanceField field;
   EdgeDistanceField::Grid grid;  // the interpolator keeps a reference to it
   Interpolator interpolator;
 };
+
+// Inline: it runs once per point per pass, and a call through the shared library's PLT
+// cannot be inlined into the pass.
+inline void SmoothView::evaluate(double u, double v, double f[2], double J[4]) const {
+  if (field.in_band(u, v)) {
+    if (J == nullptr) {
+      field.interpolate(u, v, f, nullptr, nullptr);
+      return;
+    }
+    double df_du[2], df_dv[2];
+    field.interpolate(u, v, f, df_du, df_dv);
+    J[0] = df_du[0];
+    J[1] = df_dv[0];
+    J[2] = df_du[1];
+    J[3] = df_dv[1];
+    return;
+  }
+  Eigen::Vector2d p, n;
+  field.nearest_edge({u, v}, &p, &n);
+  const double du = u - p.x(), dv = v - p.y();
+  if (n.squaredNorm() > 0.5) {
+    // f = n n^T (uv - p): the offset to the edge's tangent line.
+    const double along = du * n.x() + dv * n.y();
+    f[0] = along * n.x();
+    f[1] = along * n.y();
+    if (J != nullptr) {
+      J[0] = n.x() * n.x();
+      J[1] = J[2] = n.x() * n.y();
+      J[3] = n.y() * n.y();
+    }
+  } else {
+    f[0] = du;
+    f[1] = dv;
+    if (J != nullptr) {
+      J[0] = J[3] = 1.0;
+      J[1] = J[2] = 0.0;
+    }
+  }
+}
 
 /// The residual of one point as a template, so that Jets can differentiate it (the
 /// reference the analytic Jacobian of ViewEdgeCost is tested against).
@@ -120,6 +159,13 @@ struct PointFit {
   int in_image = 0;
 };
 
+/// Each point of one view at one pose, Huber-free: its pixel (uv, 2n, NaN for points not in
+/// front of the camera), residual (r, 2n) and Jacobian (J, row-major 2n x 6). What the
+/// covariance reads of the view (covariance_input.hpp).
+struct PointJacobians {
+  std::vector<double> uv, r, J;
+};
+
 /// All points of one view in one cost function (Ceres' per-block overhead dominates with
 /// one block per point), parameter block [rx ry rz tx ty tz] (angle-axis, metres).
 /// Analytic Jacobian: d(residual)/d(x) = d(huber)/d(r) * d(field)/d(uv) * d(uv)/d(p_camera)
@@ -137,8 +183,11 @@ class ViewEdgeCost : public ceres::CostFunction {
   /// The normal equations of this view's residuals at x added to *ne (skipped when ne is
   /// null), and the fit of its points (Huber-free distances, points in the image) in *fit,
   /// in one pass: one Levenberg-Marquardt evaluation that also yields the per-view fit and
-  /// the covariance's J^T J at the pose where the solve stops.
-  void accumulate(const double* x, NormalEquations* ne, PointFit* fit) const;
+  /// the covariance's J^T J at the pose where the solve stops. With ne and points given, the
+  /// pass also records every point's Huber-free residual and Jacobian in *points (the
+  /// covariance's input, so that it needs no pass of its own at the solution).
+  void accumulate(const double* x, NormalEquations* ne, PointFit* fit,
+                  PointJacobians* points = nullptr) const;
   int num_points() const { return static_cast<int>(points_->size()); }
 
  private:

@@ -11,15 +11,18 @@ namespace {
 struct Evaluation {
   std::vector<NormalEquations> per_cost;
   std::vector<PointFit> fits;
+  std::vector<PointJacobians> points;  // when kept
   NormalEquations total;
 };
 
-void evaluate(const std::vector<const ViewEdgeCost*>& costs, const core::Vector6d& x, Evaluation* e) {
+void evaluate(const std::vector<const ViewEdgeCost*>& costs, const core::Vector6d& x, bool keep_points,
+              Evaluation* e) {
   e->per_cost.assign(costs.size(), NormalEquations{});
   e->fits.resize(costs.size());
+  e->points.resize(keep_points ? costs.size() : 0);
   e->total = NormalEquations{};
   for (size_t k = 0; k < costs.size(); ++k) {
-    costs[k]->accumulate(x.data(), &e->per_cost[k], &e->fits[k]);
+    costs[k]->accumulate(x.data(), &e->per_cost[k], &e->fits[k], keep_points ? &e->points[k] : nullptr);
     e->total += e->per_cost[k];
   }
 }
@@ -30,8 +33,9 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
                     const PolishOptions& options) {
   PolishResult result;
   core::Vector6d x = x0;
+  result.x_evaluated = x0;
   Evaluation current, candidate;
-  evaluate(costs, x, &current);
+  evaluate(costs, x, options.keep_point_jacobians, &current);
   result.initial_cost = 0.5 * current.total.r2;
 
   // Jacobi scaling from the start, 1 / (1 + |column of J|), fixed for the solve (as
@@ -63,25 +67,29 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
       break;
     }
     // The step's length in standard deviations of the estimate: |dx|^2 over the covariance
-    // sigma^2 (J^T J)^-1 is step^T A step / sigma^2, sigma^2 = |r|^2 / (points - 6). A step
-    // far below one sigma changes nothing a user can measure; evaluating it would cost a
-    // pass over all points.
+    // sigma^2 (J^T J)^-1 is step^T A step / sigma^2, sigma^2 = |r|^2 / (points - 6). So
+    // short a step is taken without evaluating it: the quadratic model that predicts it is
+    // exact to second order there (the next step would be a few percent of it), and its
+    // evaluation would cost a pass over all points.
     if (options.step_tolerance_sigma > 0.0 && num_points > 6) {
       const double sigma2 = current.total.r2 / static_cast<double>(num_points - 6);
       const double tol = options.step_tolerance_sigma;
       if (step.dot(A * step) < tol * tol * sigma2) {
+        result.x_evaluated = x;
+        x += dx;
         stopped = true;
         break;
       }
     }
     const core::Vector6d x_new = x + dx;
-    evaluate(costs, x_new, &candidate);
+    evaluate(costs, x_new, options.keep_point_jacobians, &candidate);
     // Gain ratio: actual over predicted reduction of |r|^2.
     const double actual = current.total.r2 - candidate.total.r2;
     const double predicted = step.dot(2.0 * g - A * step);
     const double rho = actual / predicted;
     if (rho > 0.0) {
       x = x_new;
+      result.x_evaluated = x;
       std::swap(current, candidate);
       scaled_system(current.total, &A, &g);
       if (g.cwiseAbs().maxCoeff() < options.gradient_tolerance) stopped = true;
@@ -98,6 +106,7 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
   result.final_cost = 0.5 * current.total.r2;
   result.normal_equations = std::move(current.per_cost);
   result.fits = std::move(current.fits);
+  result.points = std::move(current.points);
   return result;
 }
 

@@ -46,9 +46,11 @@ struct EdgeAlignmentOptions {
   double parameter_tolerance = 1e-10; ///< relative step size that ends the solve
   /// The polish on all points (kSmoothField, coarse_stride > 1) also ends when its next
   /// step would move the pose by less than this many standard deviations of the estimate
-  /// (its Mahalanobis length under the covariance): such a step changes nothing
-  /// measurable and evaluating it costs a pass over all points. 0 = off.
-  double step_tolerance_sigma = 0.01;
+  /// (its Mahalanobis length under the covariance): it takes that step without evaluating
+  /// it (Gauss-Newton's quadratic model is exact to second order that close; the step
+  /// after it would be a few percent as long) and saves a pass over all points. The fit
+  /// and the covariance are those of the last pass, this short step away. 0 = off.
+  double step_tolerance_sigma = 0.05;
   EdgeFieldOptions field;             ///< distance field (kSmoothField)
   /// Before Eq. (2), refine the start by projecting the LIDAR hole centres onto the image
   /// ellipse centres (needs >= 3 holes with both). Widens the basin of convergence from a
