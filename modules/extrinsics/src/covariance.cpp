@@ -269,23 +269,32 @@ ViewCovarianceInput view_covariance_input(const PointJacobians& at_x, const Targ
     Eigen::Vector3d a1, a2;
     plane_axes(hole.normal, &a1, &a2);
     core::Vector6d score = core::Vector6d::Zero();
-    Eigen::Matrix<double, 6, 5> B = Eigen::Matrix<double, 6, 5>::Zero();
+    // B = sum_i J_i^T (d r_i / d p_lidar) (d p / d theta) with d r / d p_lidar = (d r / d t) R
+    // and d p / d theta = [I, a1 x d, a2 x d]: sum_i P_i [R, R (a1 x d_i), R (a2 x d_i)],
+    // P_i = J_i^T (d r_i / d t) the last three columns of J_i^T J_i. The first three columns
+    // of B are then (sum_i P_i) R, and R (a x d) = (R a) x (R d).
+    core::Matrix6d hole_JtJ = core::Matrix6d::Zero();
+    Eigen::Matrix<double, 6, 2> B_tilt = Eigen::Matrix<double, 6, 2>::Zero();
+    const Eigen::Vector3d Ra1 = R * a1, Ra2 = R * a2;
     double radius = 0.0;
     for (std::size_t i : hole.points) {
       if (!std::isfinite(uv[2 * i]) || !std::isfinite(uv[2 * i + 1])) continue;
       const Eigen::Map<const Eigen::Matrix<double, 2, 6, Eigen::RowMajor>> Ji(J.data() + 12 * i);
       const Eigen::Map<const Eigen::Vector2d> ri(r.data() + 2 * i);
-      out.JtJ += Ji.transpose() * Ji;
+      const core::Matrix6d JtJ_i = Ji.transpose() * Ji;
+      hole_JtJ += JtJ_i;
       out.r2 += ri.squaredNorm();
       ++out.count;
       score += Ji.transpose() * ri;
-      // d r / d p_lidar = (d r / d t) R; d p / d theta = [I, a1 x d, a2 x d].
       const Eigen::Vector3d d = view.lidar_circle_points[i] - hole.center;
       radius += d.norm();
-      Eigen::Matrix<double, 3, 5> dp;
-      dp << Eigen::Matrix3d::Identity(), a1.cross(d), a2.cross(d);
-      B += Ji.transpose() * (Ji.rightCols<3>() * R) * dp;
+      const Eigen::Vector3d Rd = R * d;
+      B_tilt.col(0) += JtJ_i.rightCols<3>() * Ra1.cross(Rd);
+      B_tilt.col(1) += JtJ_i.rightCols<3>() * Ra2.cross(Rd);
     }
+    out.JtJ += hole_JtJ;
+    Eigen::Matrix<double, 6, 5> B;
+    B << hole_JtJ.rightCols<3>() * R, B_tilt;
     radius /= static_cast<double>(std::max<std::size_t>(1, hole.points.size()));
     LidarHoleSigma s;
     if (caller_sigma) {
