@@ -143,7 +143,11 @@ Eigen::Vector3d PinholeCamera::unproject(const Eigen::Vector2d& pixel) const {
     Eigen::Matrix2d J;
     const Eigen::Vector2d residual = distort(xy, &J) - target;
     if (residual.norm() < 1e-14) break;
-    const Eigen::Vector2d step = J.colPivHouseholderQr().solve(residual);
+    // The 2x2 Newton step by Cramer's rule; a singular J or a non-finite step stops here.
+    const double det = J(0, 0) * J(1, 1) - J(0, 1) * J(1, 0);
+    if (!(det != 0.0)) break;
+    const Eigen::Vector2d step((J(1, 1) * residual.x() - J(0, 1) * residual.y()) / det,
+                               (J(0, 0) * residual.y() - J(1, 0) * residual.x()) / det);
     if (!step.allFinite()) break;
     xy -= step;
     if (step.norm() < 1e-15) break;
