@@ -1,6 +1,10 @@
 #include "rgbdt/extrinsics/initial_guess.hpp"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #include <Eigen/SVD>
+#include <array>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -50,51 +54,99 @@ constexpr double kAmbiguousRmsPx = 2.0;
 
 /// Points sampled on an image ellipse to undistort it. The fit of a smooth closed curve
 /// sampled evenly in its parameter converges fast: 12 to 72 samples give the same ellipse
-/// to the float rounding of cv::RotatedRect (~1e-4 px) on the simulator's cameras.
+/// to ~1e-4 px on the simulator's cameras.
 constexpr int kEllipseSamples = 24;
+using EllipseSamples = std::array<Eigen::Vector2d, kEllipseSamples>;
 
-}  // namespace
+/// An ellipse in normalised image coordinates.
+struct NormalisedEllipse {
+  Eigen::Vector2d center, major_axis, minor_axis;  // axes: unit directions
+  double major = 0.0, minor = 0.0;                 // semi-axes
+};
 
-CircleInCamera circle_from_ellipse(const cv::RotatedRect& ellipse_px, double radius_m,
-                                   const core::PinholeCamera& camera) {
-  if (!(radius_m > 0.0)) {
-    throw std::invalid_argument("circle_from_ellipse: radius_m = " + std::to_string(radius_m) +
-                                ", expected > 0");
-  }
-  if (!(ellipse_px.size.width > 1.0f && ellipse_px.size.height > 1.0f)) {
-    throw std::invalid_argument("circle_from_ellipse: degenerate ellipse (axes " +
-                                std::to_string(ellipse_px.size.width) + " x " +
-                                std::to_string(ellipse_px.size.height) + " px)");
-  }
-  // Undistort the ellipse by sampling it and refitting in normalised coordinates (scaled by
-  // fx so that fitEllipse works on pixel-like numbers).
-  const double scale = camera.intrinsics().fx;
+/// The ellipse's points evenly spaced in its parameter, undistorted to normalised coordinates.
+EllipseSamples undistorted_samples(const cv::RotatedRect& ellipse_px, const core::PinholeCamera& camera) {
   const double a = 0.5 * ellipse_px.size.width, b = 0.5 * ellipse_px.size.height;
   const double phi = ellipse_px.angle * M_PI / 180.0;
-  std::vector<cv::Point2f> samples;
-  samples.reserve(kEllipseSamples);
+  const double cos_phi = std::cos(phi), sin_phi = std::sin(phi);
+  EllipseSamples samples;
   for (int i = 0; i < kEllipseSamples; ++i) {
     const double t = 2.0 * M_PI * i / kEllipseSamples;
-    const Eigen::Vector2d px(ellipse_px.center.x + a * std::cos(t) * std::cos(phi) - b * std::sin(t) * std::sin(phi),
-                             ellipse_px.center.y + a * std::cos(t) * std::sin(phi) + b * std::sin(t) * std::cos(phi));
-    const Eigen::Vector3d ray = camera.unproject(px);
-    samples.emplace_back(static_cast<float>(ray.x() * scale), static_cast<float>(ray.y() * scale));
+    const double u = a * std::cos(t), v = b * std::sin(t);
+    const Eigen::Vector2d px(ellipse_px.center.x + u * cos_phi - v * sin_phi,
+                             ellipse_px.center.y + u * sin_phi + v * cos_phi);
+    samples[i] = camera.unproject(px).head<2>();
   }
-  const cv::RotatedRect e = cv::fitEllipse(samples);
-  const double ea = 0.5 * e.size.width / scale, eb = 0.5 * e.size.height / scale;
-  const double ephi = e.angle * M_PI / 180.0;
-  const Eigen::Vector2d c(e.center.x / scale, e.center.y / scale);
-  Eigen::Vector2d axis_major(std::cos(ephi), std::sin(ephi));
-  Eigen::Vector2d axis_minor(-std::sin(ephi), std::cos(ephi));
-  double major = ea, minor = eb;
-  if (eb > ea) {
-    std::swap(axis_major, axis_minor);
-    std::swap(major, minor);
+  return samples;
+}
+
+/// Least-squares conic A x^2 + B xy + C y^2 + D x + E y = 1 through the samples (centred on
+/// their mean and scaled to unit spread), solved from its 5x5 normal equations; nullopt
+/// when the conic is not a real ellipse.
+std::optional<NormalisedEllipse> fit_conic(const EllipseSamples& samples) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const auto& q : samples) mean += q;
+  mean /= kEllipseSamples;
+  double spread2 = 0.0;
+  for (const auto& q : samples) spread2 += (q - mean).squaredNorm();
+  const double scale = std::sqrt(spread2 / kEllipseSamples);
+  if (!(scale > 0.0)) return std::nullopt;
+  Eigen::Matrix<double, 5, 5> normal = Eigen::Matrix<double, 5, 5>::Zero();
+  Eigen::Matrix<double, 5, 1> rhs = Eigen::Matrix<double, 5, 1>::Zero();
+  for (const auto& q : samples) {
+    const Eigen::Vector2d p = (q - mean) / scale;
+    const Eigen::Matrix<double, 5, 1> row(p.x() * p.x(), p.x() * p.y(), p.y() * p.y(), p.x(), p.y());
+    normal.selfadjointView<Eigen::Lower>().rankUpdate(row);
+    rhs += row;
   }
+  const Eigen::Matrix<double, 5, 1> k = normal.selfadjointView<Eigen::Lower>().ldlt().solve(rhs);
+  // (p - c)' S (p - c) = 1 + c' S c, with S the quadratic part and c the centre.
+  Eigen::Matrix2d S;
+  S << k(0), 0.5 * k(1), 0.5 * k(1), k(2);
+  const Eigen::Vector2d c = S.inverse() * Eigen::Vector2d(-0.5 * k(3), -0.5 * k(4));
+  const double level = 1.0 + c.dot(S * c);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig;
+  eig.computeDirect(S / level);
+  const Eigen::Vector2d lambda = eig.eigenvalues();  // ascending: the major axis first
+  if (!c.allFinite() || !(lambda(0) > 0.0) || !std::isfinite(lambda(1))) return std::nullopt;
+  NormalisedEllipse e;
+  e.center = mean + scale * c;
+  // The major axis points to -x as cv::RotatedRect's does (angle in [0, 180] deg): its
+  // sign orders the two normals of circle_from_normalised_ellipse.
+  e.major_axis = eig.eigenvectors().col(0);
+  if (e.major_axis.x() > 0.0) e.major_axis = -e.major_axis;
+  e.minor_axis = Eigen::Vector2d(e.major_axis.y(), -e.major_axis.x());
+  e.major = scale / std::sqrt(lambda(0));
+  e.minor = scale / std::sqrt(lambda(1));
+  return e;
+}
+
+/// cv::fitEllipse of the samples (scaled by fx to pixel-like numbers), where fit_conic
+/// finds no ellipse.
+NormalisedEllipse fit_ellipse_cv(const EllipseSamples& samples, double fx) {
+  std::vector<cv::Point2f> points;
+  for (const auto& q : samples) points.emplace_back(static_cast<float>(q.x() * fx), static_cast<float>(q.y() * fx));
+  const cv::RotatedRect r = cv::fitEllipse(points);
+  const double angle = r.angle * M_PI / 180.0;
+  NormalisedEllipse e;
+  e.center = Eigen::Vector2d(r.center.x, r.center.y) / fx;
+  e.major_axis = Eigen::Vector2d(std::cos(angle), std::sin(angle));
+  e.minor_axis = Eigen::Vector2d(-std::sin(angle), std::cos(angle));
+  e.major = 0.5 * r.size.width / fx;
+  e.minor = 0.5 * r.size.height / fx;
+  if (e.minor > e.major) {
+    std::swap(e.major_axis, e.minor_axis);
+    std::swap(e.major, e.minor);
+  }
+  return e;
+}
+
+/// The circle of radius_m whose image is the (undistorted) ellipse e.
+CircleInCamera circle_from_normalised_ellipse(const NormalisedEllipse& e, double radius_m) {
   auto ray = [](const Eigen::Vector2d& xy) { return Eigen::Vector3d(xy.x(), xy.y(), 1.0).normalized(); };
-  const Eigen::Vector3d ray_center = ray(c);
-  const Eigen::Vector3d m1 = ray(c - major * axis_major), m2 = ray(c + major * axis_major);
-  const Eigen::Vector3d n1 = ray(c - minor * axis_minor), n2 = ray(c + minor * axis_minor);
+  const Eigen::Vector3d ray_center = ray(e.center);
+  const Eigen::Vector3d m1 = ray(e.center - e.major * e.major_axis), m2 = ray(e.center + e.major * e.major_axis);
+  const Eigen::Vector3d n1 = ray(e.center - e.minor * e.minor_axis), n2 = ray(e.center + e.minor * e.minor_axis);
   const double alpha = 0.5 * angle_between(m1, m2);  // angular radius along the major axis
   const double beta = 0.5 * angle_between(n1, n2);
   // The diameter seen along the major axis is (nearly) parallel to the image plane.
@@ -110,6 +162,25 @@ CircleInCamera circle_from_ellipse(const cv::RotatedRect& ellipse_px, double rad
   out.normals[0] = Eigen::AngleAxisd(tilt, tilt_axis) * facing;
   out.normals[1] = Eigen::AngleAxisd(-tilt, tilt_axis) * facing;
   return out;
+}
+
+}  // namespace
+
+CircleInCamera circle_from_ellipse(const cv::RotatedRect& ellipse_px, double radius_m,
+                                   const core::PinholeCamera& camera) {
+  if (!(radius_m > 0.0)) {
+    throw std::invalid_argument("circle_from_ellipse: radius_m = " + std::to_string(radius_m) +
+                                ", expected > 0");
+  }
+  if (!(ellipse_px.size.width > 1.0f && ellipse_px.size.height > 1.0f)) {
+    throw std::invalid_argument("circle_from_ellipse: degenerate ellipse (axes " +
+                                std::to_string(ellipse_px.size.width) + " x " +
+                                std::to_string(ellipse_px.size.height) + " px)");
+  }
+  // Undistort the ellipse by sampling it and refitting an ellipse in normalised coordinates.
+  const EllipseSamples samples = undistorted_samples(ellipse_px, camera);
+  const std::optional<NormalisedEllipse> fit = fit_conic(samples);
+  return circle_from_normalised_ellipse(fit ? *fit : fit_ellipse_cv(samples, camera.intrinsics().fx), radius_m);
 }
 
 Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
