@@ -183,6 +183,48 @@ CircleInCamera circle_from_ellipse(const cv::RotatedRect& ellipse_px, double rad
   return circle_from_normalised_ellipse(fit ? *fit : fit_ellipse_cv(samples, camera.intrinsics().fx), radius_m);
 }
 
+namespace {
+
+/// The point part of align_rigid, shared by alignments that differ only in their directions.
+struct PointMoments {
+  Eigen::Vector3d mean_a, mean_b;
+  Eigen::Matrix3d H;  ///< cross-covariance of the centred points
+};
+
+PointMoments point_moments(const std::vector<Eigen::Vector3d>& points_a,
+                           const std::vector<Eigen::Vector3d>& points_b) {
+  if (points_a.size() != points_b.size() || points_a.empty()) {
+    throw std::invalid_argument("align_rigid: expected matching, non-empty point lists (got " +
+                                std::to_string(points_a.size()) + " and " +
+                                std::to_string(points_b.size()) + " points)");
+  }
+  PointMoments m{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero()};
+  for (size_t i = 0; i < points_a.size(); ++i) {
+    m.mean_a += points_a[i];
+    m.mean_b += points_b[i];
+  }
+  m.mean_a /= points_a.size();
+  m.mean_b /= points_b.size();
+  for (size_t i = 0; i < points_a.size(); ++i)
+    m.H += (points_a[i] - m.mean_a) * (points_b[i] - m.mean_b).transpose();
+  return m;
+}
+
+/// align_rigid from the points' moments and the direction pairs.
+Eigen::Isometry3d align_moments(const PointMoments& m, const std::vector<Eigen::Vector3d>& directions_a,
+                                const std::vector<Eigen::Vector3d>& directions_b, double direction_weight_m2) {
+  Eigen::Matrix3d H = m.H;
+  for (size_t i = 0; i < directions_a.size(); ++i)
+    H += direction_weight_m2 * directions_a[i] * directions_b[i].transpose();
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  const Eigen::Matrix3d R = svd.matrixV() * D * svd.matrixU().transpose();
+  return core::make_transform(R, m.mean_b - R * m.mean_a);
+}
+
+}  // namespace
+
 Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
                               const std::vector<Eigen::Vector3d>& points_b,
                               const std::vector<Eigen::Vector3d>& directions_a,
@@ -194,23 +236,7 @@ Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
                                 std::to_string(points_a.size()) + " and " +
                                 std::to_string(points_b.size()) + " points)");
   }
-  Eigen::Vector3d mean_a = Eigen::Vector3d::Zero(), mean_b = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < points_a.size(); ++i) {
-    mean_a += points_a[i];
-    mean_b += points_b[i];
-  }
-  mean_a /= points_a.size();
-  mean_b /= points_b.size();
-  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < points_a.size(); ++i)
-    H += (points_a[i] - mean_a) * (points_b[i] - mean_b).transpose();
-  for (size_t i = 0; i < directions_a.size(); ++i)
-    H += direction_weight_m2 * directions_a[i] * directions_b[i].transpose();
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Eigen::Matrix3d R = svd.matrixV() * D * svd.matrixU().transpose();
-  return core::make_transform(R, mean_b - R * mean_a);
+  return align_moments(point_moments(points_a, points_b), directions_a, directions_b, direction_weight_m2);
 }
 
 namespace {
@@ -313,10 +339,12 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
     for (std::size_t i = 0; i < na.size(); ++i) cost += (T.linear() * na[i] - nbs[i]).squaredNorm();
     return cost;
   };
+  // Every alignment below shares the centres; only the choice of normals changes.
+  const PointMoments centers = point_moments(a, b);
   std::vector<Eigen::Vector3d> nb_of(cs.size());
   const auto align_with = [&](const std::vector<bool>& choice, double* cost) {
     for (std::size_t i = 0; i < cs.size(); ++i) nb_of[i] = cs[i].circle.normals[choice[i] ? 1 : 0];
-    const Eigen::Isometry3d T = align_rigid(a, b, na, nb_of);
+    const Eigen::Isometry3d T = align_moments(centers, na, nb_of, 1.0);
     *cost = alignment_cost(T, nb_of);
     return T;
   };
@@ -338,7 +366,7 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
       keep(T, cost);
     }
   } else {
-    std::vector<Eigen::Matrix3d> references{align_rigid(a, b).linear()};
+    std::vector<Eigen::Matrix3d> references{align_moments(centers, {}, {}, 1.0).linear()};
     if (!candidates.empty()) references.push_back(candidates.front().first.linear());
     for (const Eigen::Matrix3d& R : references) {
       for (std::size_t i = 0; i < cs.size(); ++i) {
