@@ -93,24 +93,29 @@ GridBox band_box(const std::vector<Eigen::Vector2d>& edge_points_px,
   return box;
 }
 
-/// The points bucketed in 4 x 4 px cells (linked lists), for the neighbour searches.
+/// The points bucketed in 4 x 4 px cells for the neighbour searches, stored cell by cell
+/// (row-major) so that the cells of one cell row are one contiguous run of points: a
+/// search reads a few runs instead of chasing a list per cell. Within a cell the points
+/// come in descending index: a fixed order, so that the normals' sums (and their
+/// rounding) do not depend on how the points were listed within a cell.
 class PointBuckets {
  public:
   PointBuckets(const std::vector<Eigen::Vector2d>& points, const GridBox& box)
-      : box_(box),
-        cell_cols_(box.cols / kCell + 1),
-        cell_rows_(box.rows / kCell + 1),
-        head_(static_cast<size_t>(cell_cols_) * cell_rows_, -1),
-        next_(points.size(), -1) {
+      : box_(box), cell_cols_(box.cols / kCell + 1), cell_rows_(box.rows / kCell + 1) {
     const int n = static_cast<int>(points.size());
+    std::vector<int> cell_of(n);
+    start_.assign(static_cast<size_t>(cell_cols_) * cell_rows_ + 1, 0);
     for (int i = 0; i < n; ++i) {
       const int c = box.pixel_c(points[i]), r = box.pixel_r(points[i]);
-      const size_t idx = static_cast<size_t>(r / kCell) * cell_cols_ + c / kCell;
-      next_[i] = head_[idx];
-      head_[idx] = i;
+      cell_of[i] = (r / kCell) * cell_cols_ + c / kCell;
+      ++start_[cell_of[i] + 1];
     }
+    for (size_t k = 1; k < start_.size(); ++k) start_[k] += start_[k - 1];
+    sorted_.resize(n);
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (int i = n - 1; i >= 0; --i) sorted_[fill[cell_of[i]]++] = points[i];
   }
-  // Calls fn(i) for (at least) every point within `reach` px of grid pixel (c0, r0).
+  // Calls fn(q) for (at least) every point q within `reach` px of grid pixel (c0, r0).
   template <typename Fn>
   void for_points_near(int c0, int r0, int reach, Fn&& fn) const {
     const int r_lo = std::max(0, r0 - reach) / kCell,
@@ -118,9 +123,8 @@ class PointBuckets {
     const int c_lo = std::max(0, c0 - reach) / kCell,
               c_hi = std::min(box_.cols - 1, c0 + reach) / kCell;
     for (int r = r_lo; r <= r_hi; ++r) {
-      for (int c = c_lo; c <= c_hi; ++c) {
-        for (int i = head_[static_cast<size_t>(r) * cell_cols_ + c]; i >= 0; i = next_[i]) fn(i);
-      }
+      const size_t row = static_cast<size_t>(r) * cell_cols_;
+      for (int j = start_[row + c_lo]; j < start_[row + c_hi + 1]; ++j) fn(sorted_[j]);
     }
   }
 
@@ -128,8 +132,33 @@ class PointBuckets {
   static constexpr int kCell = 4;
   GridBox box_;
   int cell_cols_, cell_rows_;
-  std::vector<int> head_, next_;
+  std::vector<int> start_;                // points of cell k: sorted_[start_[k] .. start_[k + 1])
+  std::vector<Eigen::Vector2d> sorted_;  // the points, cell by cell
 };
+
+/// The neighbours of a point within a radius: their count and the sums of q and q q^T
+/// over their offsets q from it.
+struct NeighbourSums {
+  double count = 0.0, x = 0.0, y = 0.0, xx = 0.0, xy = 0.0, yy = 0.0;
+};
+
+NeighbourSums neighbour_sums(const PointBuckets& buckets, const GridBox& box,
+                             const Eigen::Vector2d& p, int reach, double radius2) {
+  NeighbourSums s;
+  buckets.for_points_near(box.pixel_c(p), box.pixel_r(p), reach, [&](const Eigen::Vector2d& point) {
+    const double qx = point.x() - p.x(), qy = point.y() - p.y();  // relative: no cancellation
+    // Candidates outside the radius add zeros (x + 0 == x): no branch to mispredict on
+    // the half of the candidates that lie outside.
+    const double in = qx * qx + qy * qy <= radius2 ? 1.0 : 0.0;
+    s.count += in;
+    s.x += in * qx;
+    s.y += in * qy;
+    s.xx += in * (qx * qx);
+    s.xy += in * (qx * qy);
+    s.yy += in * (qy * qy);
+  });
+  return s;
+}
 
 /// Edge normals: smallest principal direction of the neighbours within normal_radius_px
 /// (zero where there is no line: isolated points, blobs).
@@ -141,22 +170,13 @@ std::vector<Eigen::Vector2d> edge_normals(const std::vector<Eigen::Vector2d>& ed
   const int reach = static_cast<int>(std::ceil(options.normal_radius_px));
   const double radius2 = options.normal_radius_px * options.normal_radius_px;
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector2d& p = edge_points_px[i];
-    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
-    int count = 0;
-    buckets.for_points_near(box.pixel_c(p), box.pixel_r(p), reach, [&](int j) {
-      const Eigen::Vector2d q = edge_points_px[j] - p;  // relative: no cancellation
-      if (q.squaredNorm() > radius2) return;
-      mean += q;
-      scatter += q * q.transpose();
-      ++count;
-    });
-    if (count < 3) continue;  // isolated point: distance to the point itself
-    mean /= count;
-    scatter = scatter / count - mean * mean.transpose();
+    const NeighbourSums s = neighbour_sums(buckets, box, edge_points_px[i], reach, radius2);
+    if (s.count < 3.0) continue;  // isolated point: distance to the point itself
+    // Scatter about the mean: a, b; b, c.
+    const double mx = s.x / s.count, my = s.y / s.count;
+    const double a = s.xx / s.count - mx * mx, b = s.xy / s.count - mx * my,
+                 c = s.yy / s.count - my * my;
     // Eigen-decomposition of the symmetric 2x2 scatter in closed form.
-    const double a = scatter(0, 0), b = scatter(0, 1), c = scatter(1, 1);
     const double half_diff = 0.5 * (a - c), root = std::sqrt(half_diff * half_diff + b * b);
     const double l_max = 0.5 * (a + c) + root, l_min = 0.5 * (a + c) - root;
     // A line needs one dominant direction; a blob of points has none.
