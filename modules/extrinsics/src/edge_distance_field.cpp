@@ -145,18 +145,40 @@ struct NeighbourSums {
 NeighbourSums neighbour_sums(const PointBuckets& buckets, const GridBox& box,
                              const Eigen::Vector2d& p, int reach, double radius2) {
   NeighbourSums s;
+#if defined(__SSE2__)
+  // Packed (x, y), (xx, yy), (xy, count). A candidate outside the radius adds zeros
+  // (x + 0 == x), so the sums are the scalar ones, without a branch to mispredict on the
+  // half of the candidates that lie outside (GCC turns the scalar select into one).
+  const __m128d origin = _mm_loadu_pd(p.data()), r2 = _mm_set1_pd(radius2);
+  const __m128d one = _mm_set1_pd(1.0);
+  __m128d sum_q = _mm_setzero_pd(), sum_qq = sum_q, sum_xy_count = sum_q;
+  buckets.for_points_near(box.pixel_c(p), box.pixel_r(p), reach, [&](const Eigen::Vector2d& point) {
+    const __m128d q = _mm_sub_pd(_mm_loadu_pd(point.data()), origin);  // relative: no cancellation
+    const __m128d qq = _mm_mul_pd(q, q);
+    const __m128d in = _mm_cmple_pd(_mm_add_pd(qq, _mm_shuffle_pd(qq, qq, 1)), r2);
+    const __m128d xy = _mm_mul_pd(q, _mm_shuffle_pd(q, q, 1));
+    sum_q = _mm_add_pd(sum_q, _mm_and_pd(in, q));
+    sum_qq = _mm_add_pd(sum_qq, _mm_and_pd(in, qq));
+    sum_xy_count = _mm_add_pd(sum_xy_count, _mm_and_pd(in, _mm_unpacklo_pd(xy, one)));
+  });
+  s.x = _mm_cvtsd_f64(sum_q);
+  s.y = _mm_cvtsd_f64(_mm_unpackhi_pd(sum_q, sum_q));
+  s.xx = _mm_cvtsd_f64(sum_qq);
+  s.yy = _mm_cvtsd_f64(_mm_unpackhi_pd(sum_qq, sum_qq));
+  s.xy = _mm_cvtsd_f64(sum_xy_count);
+  s.count = _mm_cvtsd_f64(_mm_unpackhi_pd(sum_xy_count, sum_xy_count));
+#else
   buckets.for_points_near(box.pixel_c(p), box.pixel_r(p), reach, [&](const Eigen::Vector2d& point) {
     const double qx = point.x() - p.x(), qy = point.y() - p.y();  // relative: no cancellation
-    // Candidates outside the radius add zeros (x + 0 == x): no branch to mispredict on
-    // the half of the candidates that lie outside.
-    const double in = qx * qx + qy * qy <= radius2 ? 1.0 : 0.0;
-    s.count += in;
-    s.x += in * qx;
-    s.y += in * qy;
-    s.xx += in * (qx * qx);
-    s.xy += in * (qx * qy);
-    s.yy += in * (qy * qy);
+    if (qx * qx + qy * qy > radius2) return;
+    s.count += 1.0;
+    s.x += qx;
+    s.y += qy;
+    s.xx += qx * qx;
+    s.xy += qx * qy;
+    s.yy += qy * qy;
   });
+#endif
   return s;
 }
 
