@@ -294,43 +294,46 @@ NearestClaims claim_nearest(const std::vector<Eigen::Vector2d>& edge_points_px, 
 }
 
 /// The stored nodes' offsets to their nearest edge (*data, interleaved du, dv) and whether
-/// each is inner (*inner); nodes beyond band_px stay zero.
+/// each is inner (*inner); nodes beyond band_px are zero. The nodes are written once each,
+/// in storage order (tile by tile), with no zero-fill before.
 void store_offsets(const std::vector<Eigen::Vector2d>& edge_points_px,
                    const std::vector<Eigen::Vector2d>& normals, const GridBox& box,
                    const TileLayout& tiles, const NearestClaims& claims,
                    const EdgeFieldOptions& options, std::vector<float>* data,
                    std::vector<uint8_t>* inner) {
-  const size_t num_nodes = static_cast<size_t>(tiles.count) * tiles.nodes();
+  const int shift = tiles.shift, tile_nodes = tiles.nodes(), mask = tiles.size() - 1;
   const double band2 = options.band_px * options.band_px;
-  const int shift = tiles.shift, tile = tiles.size();
   // A node is "inner" when the whole 4x4 bicubic stencil around it lies in the band.
   const float inner_d2 = static_cast<float>((options.band_px - 3.0) * (options.band_px - 3.0));
-  data->assign(num_nodes * 2, 0.0f);
-  inner->assign(num_nodes, 0);
-  for (int tr = 0; tr < tiles.rows; ++tr) {
-    for (int tc = 0; tc < tiles.cols; ++tc) {
-      const int slot = tiles.slot[static_cast<size_t>(tr) * tiles.cols + tc];
-      if (slot < 0) continue;
-      for (int k = 0; k < tiles.nodes(); ++k) {
-        const size_t idx = static_cast<size_t>(slot) * tiles.nodes() + k;
-        const int best = claims.nearest[idx];
-        if (best < 0 || claims.nearest_d2[idx] > band2) continue;
+  std::vector<Eigen::Vector2i> tile_origin(tiles.count);  // pixel of each slot's first node
+  for (int tr = 0; tr < tiles.rows; ++tr)
+    for (int tc = 0; tc < tiles.cols; ++tc)
+      if (const int slot = tiles.slot[static_cast<size_t>(tr) * tiles.cols + tc]; slot >= 0)
+        tile_origin[slot] = {(tc << shift) + box.col_begin, (tr << shift) + box.row_begin};
+  data->resize(2 * static_cast<size_t>(tiles.count) * tile_nodes);
+  inner->resize(static_cast<size_t>(tiles.count) * tile_nodes);
+  for (int slot = 0; slot < tiles.count; ++slot) {
+    for (int k = 0; k < tile_nodes; ++k) {
+      const size_t idx = static_cast<size_t>(slot) * tile_nodes + k;
+      // Unclaimed nodes hold d2 = inf: neither in the band nor inner.
+      const float d2 = claims.nearest_d2[idx];
+      (*inner)[idx] = d2 <= inner_d2;
+      double ou = 0.0, ov = 0.0;
+      if (d2 <= band2) {
         // The tangent-line offset, except beyond the end of an open edge (where the tangent
         // line would continue the edge into empty space) and at isolated points (zero normal).
-        const double du =
-            (tc << shift) + (k & (tile - 1)) + box.col_begin - edge_points_px[best].x();
-        const double dv = (tr << shift) + (k >> shift) + box.row_begin - edge_points_px[best].y();
+        const int best = claims.nearest[idx];
+        ou = tile_origin[slot].x() + (k & mask) - edge_points_px[best].x();
+        ov = tile_origin[slot].y() + (k >> shift) - edge_points_px[best].y();
         const double nu = normals[best].x(), nv = normals[best].y();
-        double ou = du, ov = dv;
-        if (nu * nu + nv * nv >= 0.5 && std::abs(du * -nv + dv * nu) <= options.normal_radius_px) {
-          const double along = du * nu + dv * nv;
+        if (nu * nu + nv * nv >= 0.5 && std::abs(ou * -nv + ov * nu) <= options.normal_radius_px) {
+          const double along = ou * nu + ov * nv;
           ou = along * nu;
           ov = along * nv;
         }
-        (*data)[2 * idx] = static_cast<float>(ou);
-        (*data)[2 * idx + 1] = static_cast<float>(ov);
-        (*inner)[idx] = claims.nearest_d2[idx] <= inner_d2;
       }
+      (*data)[2 * idx] = static_cast<float>(ou);
+      (*data)[2 * idx + 1] = static_cast<float>(ov);
     }
   }
 }
