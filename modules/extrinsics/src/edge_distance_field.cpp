@@ -191,8 +191,12 @@ std::vector<Eigen::Vector2d> edge_normals(const std::vector<Eigen::Vector2d>& ed
   std::vector<Eigen::Vector2d> normals(n, Eigen::Vector2d::Zero());
   const int reach = static_cast<int>(std::ceil(options.normal_radius_px));
   const double radius2 = options.normal_radius_px * options.normal_radius_px;
+  // All sums first, then the normals: the normals' divisions and square roots of
+  // successive points then overlap instead of waiting behind each point's search.
+  std::vector<NeighbourSums> sums(n);
+  for (int i = 0; i < n; ++i) sums[i] = neighbour_sums(buckets, box, edge_points_px[i], reach, radius2);
   for (int i = 0; i < n; ++i) {
-    const NeighbourSums s = neighbour_sums(buckets, box, edge_points_px[i], reach, radius2);
+    const NeighbourSums& s = sums[i];
     if (s.count < 3.0) continue;  // isolated point: distance to the point itself
     // Scatter about the mean: a, b; b, c.
     const double mx = s.x / s.count, my = s.y / s.count;
