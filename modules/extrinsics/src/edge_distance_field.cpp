@@ -298,8 +298,8 @@ NearestClaims claim_nearest(const std::vector<Eigen::Vector2d>& edge_points_px, 
 }
 
 /// The stored nodes' offsets to their nearest edge (*data, interleaved du, dv) and whether
-/// each is inner (*inner); nodes beyond band_px are zero. The nodes are written once each,
-/// in storage order (tile by tile), with no zero-fill before.
+/// each is inner (*inner); nodes beyond band_px are zero. The nodes are visited in storage
+/// order (tile by tile), so no tile of the bounding box is looked up twice.
 void store_offsets(const std::vector<Eigen::Vector2d>& edge_points_px,
                    const std::vector<Eigen::Vector2d>& normals, const GridBox& box,
                    const TileLayout& tiles, const NearestClaims& claims,
