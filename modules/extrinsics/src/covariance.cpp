@@ -67,13 +67,15 @@ std::vector<HoleCircle> split_holes(const TargetView& view) {
       holes.back().points.push_back(i);
     }
   }
+  const bool given_normals = !view.lidar_centers.empty() && view.lidar_centers.size() == view.lidar_normals.size();
   for (std::size_t h = 0; h < holes.size(); ++h) {
+    if (given_normals) {  // the detector's centre and normal: nothing to fit
+      holes[h].normal = view.lidar_normals[h].normalized();
+      continue;
+    }
     Eigen::Vector3d mean;
-    const Eigen::Vector3d n = principal_normal(p, holes[h].points, &mean);
+    holes[h].normal = principal_normal(p, holes[h].points, &mean);
     if (view.lidar_centers.empty()) holes[h].center = mean;
-    holes[h].normal = h < view.lidar_normals.size() && view.lidar_centers.size() == view.lidar_normals.size()
-                          ? view.lidar_normals[h].normalized()
-                          : n;
   }
   holes.erase(std::remove_if(holes.begin(), holes.end(), [](const HoleCircle& h) { return h.points.size() < 3; }),
               holes.end());
