@@ -92,10 +92,16 @@ std::vector<Written> sensor_messages(std::int64_t t0) {
   return out;
 }
 
-class McapRoundTrip : public testing::TestWithParam<mcap::Compression> {};
+class McapRoundTrip : public testing::TestWithParam<mcap::Compression> {
+ protected:
+  // A folder per compression: ctest runs the instances as parallel processes.
+  fs::path param_dir(const std::string& name) const {
+    return temp_dir(name + "_" + std::to_string(static_cast<int>(GetParam())));
+  }
+};
 
 TEST_P(McapRoundTrip, ReadsBackInTimeOrderAndDecodes) {
-  const fs::path file = temp_dir("roundtrip") / "sensors.mcap";
+  const fs::path file = param_dir("roundtrip") / "sensors.mcap";
   const auto messages = sensor_messages(kT0);
   write_mcap(file, GetParam(), messages);
 
@@ -139,7 +145,7 @@ TEST_P(McapRoundTrip, ReadsBackInTimeOrderAndDecodes) {
 }
 
 TEST_P(McapRoundTrip, TopicFilterReadsOnlyThatTopic) {
-  const fs::path file = temp_dir("filter") / "sensors.mcap";
+  const fs::path file = param_dir("filter") / "sensors.mcap";
   write_mcap(file, GetParam(), sensor_messages(kT0));
   ReadOptions options;
   options.topics = {"/points"};
