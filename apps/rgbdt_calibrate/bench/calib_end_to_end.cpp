@@ -12,8 +12,8 @@
 // N --seed S) into a temporary folder. Times are wall time and process CPU time (all
 // threads), the minimum over the repeats (the machine may be shared). The solve ratio is
 // taken from each camera's solve repeated --solve-repeats times on the same views by both
-// methods (the fastest of each, CPU time of the thread): a solve of a few ms is otherwise
-// at the mercy of one scheduler tick. Exit 1 when a target is missed or a calibration fails.
+// methods, interleaved (the fastest of each, CPU time of the thread): a solve of a few ms is
+// otherwise at the mercy of one scheduler tick or a spell of load. Exit 1 when a target is missed or a calibration fails.
 #include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -244,29 +244,52 @@ void keep_fastest_parts(const ext::EdgeAlignmentResult::StageTimes& t, ext::Edge
     fastest->*part = std::min(fastest->*part, t.*part);
 }
 
-FastestSolves fastest_solves(const RunResult& run, const std::map<std::string, core::PinholeCamera>& cameras,
-                             ext::EdgeAlignmentMethod method, int repeats) {
-  ext::EdgeAlignmentOptions options;
-  options.method = method;
-  FastestSolves out;
-  for (const auto& [name, views] : run.views) {
-    double best = 0.0;
-    ext::EdgeAlignmentResult::StageTimes parts;
-    for (int k = 0; k < repeats; ++k) {
-      const double cpu0 = thread_cpu_s();
-      ext::EdgeAlignmentResult result = ext::align_edges(views, cameras.at(name), options);
-      const double cpu = thread_cpu_s() - cpu0;
-      if (k == 0) parts = result.stage_times;
-      keep_fastest_parts(result.stage_times, &parts);
-      if (k == 0 || cpu < best) {
-        best = cpu;
-        out.results[name] = std::move(result);
-      }
+/// One method's fastest solve per camera so far.
+class FastestOf {
+ public:
+  explicit FastestOf(ext::EdgeAlignmentMethod method) { options_.method = method; }
+  void solve(const std::string& name, const std::vector<ext::TargetView>& views, const core::PinholeCamera& camera) {
+    const double cpu0 = thread_cpu_s();
+    ext::EdgeAlignmentResult result = ext::align_edges(views, camera, options_);
+    const double cpu = thread_cpu_s() - cpu0;
+    const bool first = best_cpu_.count(name) == 0;
+    ext::EdgeAlignmentResult::StageTimes parts = first ? result.stage_times : parts_[name];
+    keep_fastest_parts(result.stage_times, &parts);
+    parts_[name] = parts;
+    if (first || cpu < best_cpu_[name]) {
+      best_cpu_[name] = cpu;
+      out_.results[name] = std::move(result);
     }
-    out.results[name].stage_times = parts;
-    out.cpu_s += best;
   }
-  return out;
+  FastestSolves result() const {
+    FastestSolves out = out_;
+    for (const auto& [name, cpu] : best_cpu_) {
+      out.cpu_s += cpu;
+      out.results[name].stage_times = parts_.at(name);
+    }
+    return out;
+  }
+
+ private:
+  ext::EdgeAlignmentOptions options_;
+  std::map<std::string, double> best_cpu_;
+  std::map<std::string, ext::EdgeAlignmentResult::StageTimes> parts_;
+  FastestSolves out_;
+};
+
+/// Each camera's solve by both methods, `repeats` times each, interleaved so that both see
+/// the same machine (a spell of load on a shared one slows both, not one): the fastest of
+/// each, ours in *ours, the paper's in *paper.
+void fastest_solves(const RunResult& ours_run, const RunResult& paper_run,
+                    const std::map<std::string, core::PinholeCamera>& cameras, int repeats, FastestSolves* ours,
+                    FastestSolves* paper) {
+  FastestOf ours_of(ext::EdgeAlignmentMethod::kSmoothField), paper_of(ext::EdgeAlignmentMethod::kPaperPlaneFit);
+  for (int k = 0; k < repeats; ++k) {
+    for (const auto& [name, views] : ours_run.views) ours_of.solve(name, views, cameras.at(name));
+    for (const auto& [name, views] : paper_run.views) paper_of.solve(name, views, cameras.at(name));
+  }
+  *ours = ours_of.result();
+  *paper = paper_of.result();
 }
 
 /// The solve's parts summed over the cameras [ms wall, each the fastest of the repeats]
@@ -357,9 +380,8 @@ int main(int argc, char** argv) {
   const Time to = total(ours), tp = total(paper);
   std::printf("%-24s | %9.3fs %9.3fs | %9.3fs %9.3fs\n", "whole run (in-process)", to.wall, to.cpu, tp.wall, tp.cpu);
   std::printf("%-24s | %9.3fs %9.3fs | (exit %d)\n", "rgbdt_calibrate app", app_time.wall, app_time.cpu, app_exit);
-  const FastestSolves ours_solves = fastest_solves(ours, cameras, ext::EdgeAlignmentMethod::kSmoothField, solve_repeats);
-  const FastestSolves paper_solves =
-      fastest_solves(paper, cameras, ext::EdgeAlignmentMethod::kPaperPlaneFit, solve_repeats);
+  FastestSolves ours_solves, paper_solves;
+  fastest_solves(ours, paper, cameras, solve_repeats, &ours_solves, &paper_solves);
   const double ratio_cpu = paper_solves.cpu_s / ours_solves.cpu_s;
   std::printf("\nsolve, paper / ours: %.0fx CPU, the fastest of %d solves per camera (%.2f / %.2f ms; target >= 100x); "
               "in the runs above %.0fx\n",
