@@ -58,17 +58,14 @@ const std::array<const char*, kNumStages> kStageNames = {"load (clouds, images)"
                                                          "image detection", "solve",
                                                          "report", "overlays (draw, JPEG)"};
 
-double thread_cpu_s() {
+/// CPU time [s] of `clock`: CLOCK_PROCESS_CPUTIME_ID (all threads) or CLOCK_THREAD_CPUTIME_ID.
+double cpu_s(clockid_t clock) {
   timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  clock_gettime(clock, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
-
-double process_cpu_s() {
-  timespec ts;
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+double thread_cpu_s() { return cpu_s(CLOCK_THREAD_CPUTIME_ID); }
+double process_cpu_s() { return cpu_s(CLOCK_PROCESS_CPUTIME_ID); }
 
 struct Time {
   double wall = 0.0, cpu = 0.0;

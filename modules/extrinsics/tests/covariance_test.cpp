@@ -18,6 +18,15 @@ using rgbdt::core::Vector6d;
 
 namespace {
 
+/// A hole's LIDAR error: centre shift in the plane and along the normal [m], tilt [rad].
+ext::LidarHoleSigma hole_sigma(double in_plane_m, double normal_m, double tilt_rad) {
+  ext::LidarHoleSigma sigma;
+  sigma.center_in_plane_m = in_plane_m;
+  sigma.center_normal_m = normal_m;
+  sigma.tilt_rad = tilt_rad;
+  return sigma;
+}
+
 /// Moves each view's circle (points, centre, normal) by one draw of the hole error `sigma`
 /// states, and gives align_edges that sigma for it.
 void perturb_circles(std::vector<ext::TargetView>* views, const ext::LidarHoleSigma& sigma, std::mt19937* rng,
@@ -49,10 +58,7 @@ void perturb_circles(std::vector<ext::TargetView>* views, const ext::LidarHoleSi
 double mean_nees_of_resolves(const rgbdt::core::PinholeCamera& camera, const Eigen::Isometry3d& truth,
                              const std::vector<t::Placement>& placements, int draws, int* other_chart) {
   const std::vector<ext::TargetView> clean = t::make_views(camera, truth, placements);
-  ext::LidarHoleSigma sigma;
-  sigma.center_in_plane_m = 0.004;
-  sigma.center_normal_m = 0.002;
-  sigma.tilt_rad = 0.01;
+  const ext::LidarHoleSigma sigma = hole_sigma(0.004, 0.002, 0.01);
   std::mt19937 rng(11);
   std::normal_distribution<double> g;
   double sum_nees = 0.0;
@@ -277,10 +283,7 @@ TEST(Covariance, FewViewsAreCoveredByTheResampledTerm) {
   const Eigen::Isometry3d truth = t::true_T_camera_lidar();
   const std::vector<t::Placement> placements = {{{5.0, -0.3, 0.1}, 3, -2}, {{5.8, 0.3, 0.0}, -2, 3}};
   const std::vector<ext::TargetView> clean = t::make_views(camera, truth, placements);
-  ext::LidarHoleSigma sigma;
-  sigma.center_in_plane_m = 0.03;
-  sigma.center_normal_m = 0.004;
-  sigma.tilt_rad = 0.002;
+  const ext::LidarHoleSigma sigma = hole_sigma(0.03, 0.004, 0.002);
   std::mt19937 rng(5);
   std::normal_distribution<double> g;
   constexpr int kDraws = 30;
