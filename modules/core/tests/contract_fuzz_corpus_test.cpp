@@ -35,7 +35,9 @@ void replay(const std::string& name, Target target, const std::vector<std::strin
   ASSERT_GE(files.size(), 4u) << "corpus missing under modules/core/fuzz/corpus/" << name;
   for (const auto& [file, bytes] : files) {
     const int accepted = target(bytes.data(), bytes.size());
-    if (file.rfind("valid", 0) == 0) EXPECT_EQ(accepted, 1) << name << "/" << file;
+    if (file.rfind("valid", 0) == 0) {
+      EXPECT_EQ(accepted, 1) << name << "/" << file;
+    }
   }
   for (const auto& file : refused) {
     ASSERT_TRUE(files.count(file)) << name << "/" << file;

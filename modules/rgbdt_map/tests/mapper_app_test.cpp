@@ -123,8 +123,9 @@ void write_session(const fs::path& dir, int tilts, const SessionOptions& options
     entry.intrinsics = (dir / (cam.name + ".yaml")).string();
     entry.frames = (dir / cam.name / "index.csv").string();
     if (cam.name == "thermal") {
-      entry.radiometry =
-          core::RadiometrySpec{"linear", {{"kelvin_per_count", options.kelvin_per_count}, {"offset_k", 0.0}}};
+      core::RadiometrySpec radiometry;
+      radiometry.parameters = {{"kelvin_per_count", options.kelvin_per_count}, {"offset_k", 0.0}};
+      entry.radiometry = radiometry;
     }
     session.cameras[cam.name] = entry;
   }
