@@ -143,15 +143,17 @@ inline double trans_cm(const core::Vector6d& e) { return e.tail<3>().norm() * 10
 
 }  // namespace detail
 
-/// Simulates the case's session under tmp_dir/case_<seed>, calibrates its RGB camera and
-/// scores the result. The session directory is removed afterwards. `covariance` holds the
-/// covariance model's switches (its per-view sigmas come from the detections).
-inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir,
-                           const CovarianceOptions& covariance = {}) {
+/// A case's RGB views as rgbdt_calibrate builds them, its camera and the true T_rgb_lidar.
+struct CaseViews {
+  std::vector<TargetView> views;
+  core::PinholeCamera camera;
+  Eigen::Isometry3d truth;
+};
+
+/// The case's views from its session simulated under tmp_dir/case_<seed> (removed
+/// afterwards); sets the options' per-view hole sigmas from the detections.
+inline CaseViews case_views(const Case& c, const std::filesystem::path& tmp_dir, EdgeAlignmentOptions* options) {
   namespace fs = std::filesystem;
-  const auto start = std::chrono::steady_clock::now();
-  CaseResult out;
-  out.c = c;
   const fs::path dir = tmp_dir / ("case_" + std::to_string(c.seed));
   fs::remove_all(dir);
   sim::CalibrationSessionOptions opt;
@@ -160,15 +162,11 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir,
   opt.noise_scale = c.noise_scale;
   opt.holes = c.holes;
   opt.lidar = sim_lidar(c.kind);
-  const sim::CalibrationSessionResult sim_result = sim::write_calibration_session(dir.string(), opt);
-  const Eigen::Isometry3d truth = opt.rig.T_rgb_lidar;
+  sim::write_calibration_session(dir.string(), opt);
   const core::CalibrationSession session = core::read_calibration_session(dir.string());
   const core::PinholeCamera camera(core::read_camera_info(session.cameras.at("rgb").intrinsics));
-
   std::vector<TargetView> views;
-  EdgeAlignmentOptions options;
-  options.covariance_model = covariance;
-  options.covariance_model.per_view.clear();
+  options->covariance_model.per_view.clear();
   for (std::size_t i = 0; i < session.views.size(); ++i) {
     const auto& sv = session.views[i];
     const cloud::LoadedCloud loaded = cloud::load_pcd(sv.cloud);
@@ -179,10 +177,26 @@ inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir,
     if (!lidar.ok || !det.ok) continue;
     std::vector<LidarHoleSigma> sigma;
     views.push_back(detail::target_view(lidar, det, session.target, image.size(), "view " + std::to_string(i), &sigma));
-    options.covariance_model.per_view.push_back(std::move(sigma));
+    options->covariance_model.per_view.push_back(std::move(sigma));
   }
   fs::remove_all(dir);
-  (void)sim_result;
+  return {std::move(views), camera, opt.rig.T_rgb_lidar};
+}
+
+/// Simulates the case's session under tmp_dir/case_<seed>, calibrates its RGB camera and
+/// scores the result. The session directory is removed afterwards. `covariance` holds the
+/// covariance model's switches (its per-view sigmas come from the detections).
+inline CaseResult run_case(const Case& c, const std::filesystem::path& tmp_dir,
+                           const CovarianceOptions& covariance = {}) {
+  const auto start = std::chrono::steady_clock::now();
+  CaseResult out;
+  out.c = c;
+  EdgeAlignmentOptions options;
+  options.covariance_model = covariance;
+  const CaseViews cv = case_views(c, tmp_dir, &options);
+  const std::vector<TargetView>& views = cv.views;
+  const core::PinholeCamera& camera = cv.camera;
+  const Eigen::Isometry3d& truth = cv.truth;
   if (views.empty()) {
     out.reason = "no view with the target found in both the cloud and the image";
     return out;
