@@ -192,6 +192,7 @@ detail::PolishOptions polish_options_of(const EdgeAlignmentOptions& options) {
   polish_options.max_iterations = options.max_iterations;
   polish_options.parameter_tolerance = options.parameter_tolerance;
   polish_options.step_tolerance_sigma = options.step_tolerance_sigma;
+  polish_options.rejected_step_sigma = 5.0 * options.step_tolerance_sigma;
   return polish_options;
 }
 

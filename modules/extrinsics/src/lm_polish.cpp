@@ -71,10 +71,12 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
     // short a step is taken without evaluating it: the quadratic model that predicts it is
     // exact to second order there (the next step would be a few percent of it), and its
     // evaluation would cost a pass over all points.
+    // Squared Mahalanobis length of the step in sigmas (0 when there are too few points).
+    const double step_sigma2 =
+        num_points > 6 ? step.dot(A * step) / (current.total.r2 / static_cast<double>(num_points - 6)) : 0.0;
     if (options.step_tolerance_sigma > 0.0 && num_points > 6) {
-      const double sigma2 = current.total.r2 / static_cast<double>(num_points - 6);
       const double tol = options.step_tolerance_sigma;
-      if (step.dot(A * step) < tol * tol * sigma2) {
+      if (step_sigma2 < tol * tol) {
         result.x_evaluated = x;
         x += dx;
         stopped = true;
@@ -97,6 +99,11 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
       u *= std::max(1.0 / 3.0, 1.0 - c * c * c);
       v = 2.0;
     } else {
+      const double stop = options.rejected_step_sigma;
+      if (stop > 0.0 && num_points > 6 && step_sigma2 < stop * stop) {
+        stopped = true;
+        break;
+      }
       u *= v;
       v *= 2.0;
     }

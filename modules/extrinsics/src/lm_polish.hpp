@@ -16,6 +16,12 @@ struct PolishOptions {
   /// standard deviations of the estimate (Mahalanobis length under sigma^2 (J^T J)^-1);
   /// 0 = off.
   double step_tolerance_sigma = 0.0;
+  /// Stop at x when a step shorter than this many standard deviations (as above) is
+  /// rejected: the cost went up along a direction its own model says goes down, so it is
+  /// not smooth at that scale (a projection crossing the field's band edge or passing from
+  /// one edge point's cell to the next), and damping the step further only spends passes
+  /// on what the cost cannot resolve. 0 = off (LM damps and retries).
+  double rejected_step_sigma = 0.0;
   /// Record every point's Huber-free residual and Jacobian in each evaluation, so that the
   /// result carries them at x (PolishResult::points).
   bool keep_point_jacobians = false;

@@ -49,7 +49,11 @@ struct EdgeAlignmentOptions {
   /// (its Mahalanobis length under the covariance): it takes that step without evaluating
   /// it (Gauss-Newton's quadratic model is exact to second order that close; the step
   /// after it would be a few percent as long) and saves a pass over all points. The fit
-  /// and the covariance are those of the last pass, this short step away. 0 = off.
+  /// and the covariance are those of the last pass, this short step away. A step shorter
+  /// than 5x this that raises the cost ends the polish where it is: the cost is not smooth
+  /// at that scale (projections crossing the field's band edge or from one edge point's
+  /// cell to the next), and damping it further would spend passes on nothing it resolves.
+  /// 0 = off (both rules).
   double step_tolerance_sigma = 0.05;
   EdgeFieldOptions field;             ///< distance field (kSmoothField)
   /// Before Eq. (2), refine the start by projecting the LIDAR hole centres onto the image
