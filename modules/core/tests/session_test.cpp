@@ -95,7 +95,8 @@ TEST(Session, MappingWriteThenReadRoundTrips) {
   s.lidar.clouds = (dir / "clouds/index.csv").string();
   s.lidar.rig = (dir / "tilt_rig.yaml").string();
   s.cameras["rgb"] = {(dir / "rgb.yaml").string(), (dir / "rgb/index.csv").string(), std::nullopt};
-  RadiometrySpec r{"linear", {{"kelvin_per_count", 0.04}, {"offset_k", 1.5}}};
+  RadiometrySpec r;
+  r.parameters = {{"kelvin_per_count", 0.04}, {"offset_k", 1.5}};
   s.cameras["thermal"] = {(dir / "thermal.yaml").string(), (dir / "thermal/index.csv").string(), r};
   s.trajectory = (dir / "ground_truth/trajectory.csv").string();
   write_mapping_session((dir / "session.yaml").string(), s);
