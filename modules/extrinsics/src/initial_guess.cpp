@@ -230,11 +230,10 @@ Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
                               const std::vector<Eigen::Vector3d>& directions_a,
                               const std::vector<Eigen::Vector3d>& directions_b,
                               double direction_weight_m2) {
-  if (points_a.size() != points_b.size() || directions_a.size() != directions_b.size() ||
-      points_a.empty()) {
-    throw std::invalid_argument("align_rigid: expected matching, non-empty point lists (got " +
-                                std::to_string(points_a.size()) + " and " +
-                                std::to_string(points_b.size()) + " points)");
+  if (directions_a.size() != directions_b.size()) {
+    throw std::invalid_argument("align_rigid: expected matching direction lists (got " +
+                                std::to_string(directions_a.size()) + " and " +
+                                std::to_string(directions_b.size()) + " directions)");
   }
   return align_moments(point_moments(points_a, points_b), directions_a, directions_b, direction_weight_m2);
 }
@@ -344,7 +343,7 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
   std::vector<Eigen::Vector3d> nb_of(cs.size());
   const auto align_with = [&](const std::vector<bool>& choice, double* cost) {
     for (std::size_t i = 0; i < cs.size(); ++i) nb_of[i] = cs[i].circle.normals[choice[i] ? 1 : 0];
-    const Eigen::Isometry3d T = align_moments(centers, na, nb_of, 1.0);
+    const Eigen::Isometry3d T = align_moments(centers, na, nb_of, kDirectionWeightM2);
     *cost = alignment_cost(T, nb_of);
     return T;
   };
@@ -366,7 +365,7 @@ std::vector<std::pair<Eigen::Isometry3d, std::string>> solve_pairing(const std::
       keep(T, cost);
     }
   } else {
-    std::vector<Eigen::Matrix3d> references{align_moments(centers, {}, {}, 1.0).linear()};
+    std::vector<Eigen::Matrix3d> references{align_moments(centers, {}, {}, kDirectionWeightM2).linear()};
     if (!candidates.empty()) references.push_back(candidates.front().first.linear());
     for (const Eigen::Matrix3d& R : references) {
       for (std::size_t i = 0; i < cs.size(); ++i) {

@@ -55,6 +55,21 @@ TEST(InitialGuess, AlignRigidRecoversAKnownTransform) {
   EXPECT_LT(core::translation_error_m(est, T), 1e-9);
 }
 
+TEST(InitialGuess, AlignRigidNamesMismatchedLists) {
+  const std::vector<Eigen::Vector3d> three = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, two = {{1, 0, 0}, {0, 1, 0}};
+  const auto message = [](const auto& call) {
+    try {
+      call();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  EXPECT_NE(message([&] { align_rigid(three, two); }).find("3 and 2 points"), std::string::npos);
+  EXPECT_NE(message([&] { align_rigid({}, {}); }).find("0 and 0 points"), std::string::npos);
+  EXPECT_NE(message([&] { align_rigid(three, three, three, two); }).find("3 and 2 directions"), std::string::npos);
+}
+
 TEST(InitialGuess, CircleFromEllipseRecoversCentreAndOneOfTheNormals) {
   const core::PinholeCamera camera(testing::table1_intrinsics(true));
   // Board 4 m ahead, tilted 35 degrees about the camera's y axis.

@@ -41,6 +41,9 @@ struct InitialGuessResult {
   std::string ambiguity;
 };
 
+/// align_rigid's default weight of a direction pair against a point pair [m^2].
+constexpr double kDirectionWeightM2 = 1.0;
+
 /// Rigid alignment of point and direction correspondences (Kabsch/Umeyama without scale):
 /// finds T minimising sum |T a_i - b_i|^2 + w sum |R u_i - v_i|^2. Needs >= 3 points in
 /// general position, or >= 1 point and >= 2 non-parallel directions.
@@ -48,7 +51,7 @@ Eigen::Isometry3d align_rigid(const std::vector<Eigen::Vector3d>& points_a,
                               const std::vector<Eigen::Vector3d>& points_b,
                               const std::vector<Eigen::Vector3d>& directions_a = {},
                               const std::vector<Eigen::Vector3d>& directions_b = {},
-                              double direction_weight_m2 = 1.0);
+                              double direction_weight_m2 = kDirectionWeightM2);
 
 /// Closed-form T_camera_lidar from the per-hole data of the views (lidar_centers,
 /// lidar_normals, image_ellipses). Views without that data are skipped. The LIDAR holes and
