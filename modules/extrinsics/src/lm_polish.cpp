@@ -66,14 +66,14 @@ PolishResult polish(const std::vector<const ViewEdgeCost*>& costs, const core::V
       stopped = true;
       break;
     }
-    // The step's length in standard deviations of the estimate: |dx|^2 over the covariance
-    // sigma^2 (J^T J)^-1 is step^T A step / sigma^2, sigma^2 = |r|^2 / (points - 6). So
-    // short a step is taken without evaluating it: the quadratic model that predicts it is
-    // exact to second order there (the next step would be a few percent of it), and its
-    // evaluation would cost a pass over all points.
-    // Squared Mahalanobis length of the step in sigmas (0 when there are too few points).
+    // The step's squared length in standard deviations of the estimate: |dx|^2 over the
+    // covariance sigma^2 (J^T J)^-1 is step^T A step / sigma^2, sigma^2 = |r|^2 / (points - 6)
+    // (0 with too few points; both rules below then stay off).
     const double step_sigma2 =
         num_points > 6 ? step.dot(A * step) / (current.total.r2 / static_cast<double>(num_points - 6)) : 0.0;
+    // So short a step is taken without evaluating it: the quadratic model that predicts it
+    // is exact to second order there (the next step would be a few percent of it), and its
+    // evaluation would cost a pass over all points.
     if (options.step_tolerance_sigma > 0.0 && num_points > 6) {
       const double tol = options.step_tolerance_sigma;
       if (step_sigma2 < tol * tol) {
