@@ -700,6 +700,32 @@ std::string check_hole_surroundings(const BoardGeometry& g, const LidarHole& hol
   return s.str();
 }
 
+/// A hole lets the beams through: what a ray through it (within 0.8 r of the centre) hits
+/// lies behind the board, or nothing does. A gap in a plane that something in front of it
+/// casts (the board's shadow on the floor or a wall) is hit in front of the plane instead.
+/// Empty when the rays through the hole mostly end behind it.
+std::string check_see_through(const std::vector<Vec3>& pts, const LidarHole& hole, double r) {
+  const Vec3& n = hole.normal;
+  const double d = -n.dot(hole.center);
+  // Beyond range noise and mixed pixels at the rim: 10 cm or a third of the radius.
+  const double margin = std::max(0.1, r / 3.0);
+  int in_front = 0, behind = 0;
+  for (const Vec3& p : pts) {
+    const double range = p.norm(), cos_in = n.dot(p) / range;
+    if (std::abs(cos_in) < 1e-6) continue;
+    const double s = -d / cos_in;  // the ray's range at the plane
+    if (s <= 0.0) continue;
+    if (((s / range) * p - hole.center).squaredNorm() > 0.64 * r * r) continue;
+    in_front += range < s - margin;
+    behind += range > s + margin;
+  }
+  if (in_front < 10 || in_front <= behind) return {};
+  std::ostringstream os;
+  os << "the hole at " << hole.center.transpose() << " is a shadow: " << in_front
+     << " points seen through it lie in front of the board (" << behind << " behind)";
+  return os.str();
+}
+
 /// Fitted centres must reproduce the layout's pairwise distances. Empty when they do.
 std::string check_layout(const std::vector<LidarHole>& holes, const std::vector<Vec2>& layout, double r,
                          const LidarDetectionOptions& options) {
@@ -828,6 +854,13 @@ BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>&
         res.holes.clear();
         return res;
       }
+    }
+  }
+  for (const LidarHole& hole : res.holes) {
+    if (std::string why = check_see_through(pts, hole, r); !why.empty()) {
+      res.reason = std::move(why);
+      res.holes.clear();
+      return res;
     }
   }
   if (std::string why = check_layout(res.holes, layout, r, options); !why.empty()) {
@@ -1074,6 +1107,7 @@ struct BestBoard {
   BoardResult result;
   std::vector<int> board;  ///< indices into the points
   std::string last_reason = "no plane segment";
+  std::string shadow;  ///< a hole-like gap rejected by check_see_through, if any
   std::size_t segments = 0;  ///< planar segments found
 };
 
@@ -1087,11 +1121,11 @@ BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSp
   const std::vector<std::vector<int>> segments = planar_segments(ds, opt);
   BestBoard best;
   best.segments = segments.size();
-  for (const auto& seg : segments) {
+  const auto try_segment = [&](const std::vector<int>& seg) {
     std::vector<int> full;
-    if (!points_near_segment(pts, ds, seg, target, opt, board_half_diag, &full)) continue;
+    if (!points_near_segment(pts, ds, seg, target, opt, board_half_diag, &full)) return;
     std::vector<int> c;
-    if (!sac_plane(pts, full, opt.refit_distance_m, &c, nullptr)) continue;
+    if (!sac_plane(pts, full, opt.refit_distance_m, &c, nullptr)) return;
     const BoardResult b = holes_on_board(pts, c, in.rings, has_ring, target, opt);
     if (b.ok) {
       core::log_debug("calib_targets: board with ", b.matched, " matched holes, score ", b.score);
@@ -1100,12 +1134,14 @@ BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSp
         best.result = b;
         best.board = c;
       }
-      continue;
+      return;
     }
     best.last_reason = b.reason;
+    if (b.reason.find(" is a shadow: ") != std::string::npos) best.shadow = b.reason;
     core::log_debug("calib_targets: segment of ", c.size(), " points at ",
                     pts[static_cast<std::size_t>(c[0])].transpose(), ": ", b.reason);
-  }
+  };
+  for (const auto& seg : segments) try_segment(seg);
   return best;
 }
 
@@ -1233,6 +1269,7 @@ LidarTargetDetection detect_target_in_cloud(const cloud::Cloud& cloud, bool has_
   }
   det.reason = "no board with the target's holes found among " + std::to_string(best.segments) +
                " planar segments (last: " + best.last_reason + ")";
+  if (!best.shadow.empty() && best.shadow != best.last_reason) det.reason += "; rejected: " + best.shadow;
   return det;
 }
 
