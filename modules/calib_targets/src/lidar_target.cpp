@@ -460,6 +460,7 @@ struct BoardResult {
   int matched = 0;     ///< layout holes matched by an empty disc
   double score = 0.0;  ///< lower is better: mean (|r_free - r| + rms) / r
   std::string reason;
+  bool shadow = false;  ///< rejected by check_see_through (reason says which hole)
   Eigen::Vector4d plane;
   std::vector<LidarHole> holes;
   std::string method;
@@ -856,17 +857,19 @@ BoardResult holes_on_board(const std::vector<Vec3>& pts, const std::vector<int>&
       }
     }
   }
-  for (const LidarHole& hole : res.holes) {
-    if (std::string why = check_see_through(pts, hole, r); !why.empty()) {
-      res.reason = std::move(why);
-      res.holes.clear();
-      return res;
-    }
-  }
   if (std::string why = check_layout(res.holes, layout, r, options); !why.empty()) {
     res.reason = std::move(why);
     res.holes.clear();
     return res;
+  }
+  // Last: one pass over the whole cloud per hole.
+  for (const LidarHole& hole : res.holes) {
+    if (std::string why = check_see_through(pts, hole, r); !why.empty()) {
+      res.reason = std::move(why);
+      res.shadow = true;
+      res.holes.clear();
+      return res;
+    }
   }
   for (LidarHole& hole : res.holes) {
     res.score += (std::abs(hole.radius_m - r) + hole.rms_m) / r / static_cast<double>(init.size());
@@ -1137,7 +1140,7 @@ BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSp
       return;
     }
     best.last_reason = b.reason;
-    if (b.reason.find(" is a shadow: ") != std::string::npos) best.shadow = b.reason;
+    if (b.shadow) best.shadow = b.reason;
     core::log_debug("calib_targets: segment of ", c.size(), " points at ",
                     pts[static_cast<std::size_t>(c[0])].transpose(), ": ", b.reason);
   };

@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <random>
 
 #include "rgbdt/cloud/pcd_io.hpp"
 #include "rgbdt/core/log.hpp"
@@ -81,30 +80,8 @@ TEST(LidarTarget, OccupancyDetectorForNonRepetitiveLidar) {
 TEST(LidarTarget, AShadowIsNotAHole) {
   auto panel = rgbdt::test::board_at(5.0, 0.0, 0.0, 0.0);
   panel.holes.clear();
-  const Eigen::Vector3d sign_center = 0.8 * panel.T_lidar_board.translation();
-  const double sign_radius = 0.24;
-  std::mt19937 rng(3u);
-  std::normal_distribution<double> noise(0.0, 0.005);
-  rgbdt::cloud::Cloud cloud;
-  const double deg = M_PI / 180.0;
-  int ring = 0;
-  for (double phi = -30.0; phi <= 30.0; phi += 0.5, ++ring) {
-    const Eigen::Matrix3d R = Eigen::AngleAxisd(phi * deg, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    for (double th = -60.0; th <= 60.0; th += 0.25) {
-      const Eigen::Vector3d d = R * Eigen::Vector3d(std::cos(th * deg), std::sin(th * deg), 0.0);
-      double r = rgbdt::test::cast(panel, d, panel.T_lidar_board.translation().x() + 1.5, -1.2);
-      const double t_sign = sign_center.x() / d.x();  // the sign faces the sensor (plane x = 4 m)
-      if ((t_sign * d - sign_center).norm() < sign_radius && (r < 0 || t_sign < r)) r = t_sign;
-      if (r < 0 || r > 30) continue;
-      const Eigen::Vector3d p = (r + noise(rng)) * d;
-      rgbdt::cloud::PointXYZIRT pt;
-      pt.x = static_cast<float>(p.x());
-      pt.y = static_cast<float>(p.y());
-      pt.z = static_cast<float>(p.z());
-      pt.ring = static_cast<std::uint16_t>(ring);
-      cloud.push_back(pt);
-    }
-  }
+  panel.signs.push_back({0.8 * panel.T_lidar_board.translation(), 0.24});
+  const auto cloud = rgbdt::test::tilting_scan(panel, 0.005, 3u);
   const auto det = ct::detect_target_in_cloud(cloud, true, paper_target());
   EXPECT_FALSE(det.ok) << "found a hole at " << det.holes.at(0).center.transpose();
   EXPECT_NE(det.reason.find("shadow"), std::string::npos) << det.reason;

@@ -15,6 +15,12 @@ struct Board {
   double half_width = 0.6, half_height = 0.6;                         // [m]
   double radius = 0.3;                                                // [m]
   std::vector<Eigen::Vector2d> holes{Eigen::Vector2d::Zero()};        // board frame [m]
+  /// Round signs facing the sensor (their plane x = centre.x) that occlude what lies behind.
+  struct Sign {
+    Eigen::Vector3d center;
+    double radius;
+  };
+  std::vector<Sign> signs;
 
   Eigen::Vector3d hole_center(std::size_t k) const {
     return T_lidar_board * Eigen::Vector3d(holes[k].x(), holes[k].y(), 0.0);
@@ -59,6 +65,11 @@ inline double cast(const Board& b, const Eigen::Vector3d& d, double wall_x, doub
   auto consider = [&](double t) {
     if (t > 0 && (best < 0 || t < best)) best = t;
   };
+  for (const auto& s : b.signs) {
+    if (d.x() <= 1e-9) continue;
+    const double t = s.center.x() / d.x();
+    if ((t * d - s.center).norm() < s.radius) consider(t);
+  }
   if (d.x() > 1e-9) consider(wall_x / d.x());
   if (d.z() < -1e-9) consider(floor_z / d.z());
   return best;
