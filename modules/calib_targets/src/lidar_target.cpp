@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <set>
@@ -1042,28 +1043,61 @@ std::vector<Vec3> voxel_downsample(const std::vector<Vec3>& pts, double voxel_m)
   return ds;
 }
 
+/// PCL's region growing on neighbour lists found beforehand. Its own search is the k nearest
+/// neighbours of every point, the same lists as the normals' (same cloud, same k): given
+/// them, the cloud needs one k-d tree and one search instead of two of each (the searches
+/// are the largest part of a LIDAR detection).
+class RegionGrowingOnNeighbours : public pcl::RegionGrowing<pcl::PointXYZ, pcl::Normal> {
+ public:
+  explicit RegionGrowingOnNeighbours(std::vector<pcl::Indices> neighbours) : given_(std::move(neighbours)) {}
+
+ protected:
+  // The base's checks without its tree, which it would build again over the same cloud.
+  bool prepareForSegmentation() override {
+    return !input_->points.empty() && normals_ && normals_->size() == input_->size() && neighbour_number_ > 0 &&
+           given_.size() == input_->size();
+  }
+  void findPointNeighbours() override { point_neighbours_ = std::move(given_); }
+
+ private:
+  std::vector<pcl::Indices> given_;
+};
+
 /// Planar segments of the downsampled cloud by region growing on normals (PCL), largest
 /// first: a small board in a large scene is rarely among the first planes a global RANSAC
 /// finds.
 std::vector<std::vector<int>> planar_segments(const std::vector<Vec3>& ds,
                                               const LidarDetectionOptions& opt) {
   const int min_ds_points = std::max(10, opt.min_board_points / 4);
+  constexpr int kNeighbours = 12;
   std::vector<std::vector<int>> segments;
   std::vector<int> every(ds.size());
   std::iota(every.begin(), every.end(), 0);
   auto dpc = to_pcl(ds, every);
-  pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
+  // The normals as pcl::NormalEstimation computes them (its plane fit, turned towards the
+  // sensor origin), on the neighbour lists the region growing then reuses.
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+  tree.setInputCloud(dpc);
+  std::vector<pcl::Indices> neighbours(dpc->size());
   pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
+  normals->resize(dpc->size());
   pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> ne;
-  ne.setInputCloud(dpc);
-  ne.setSearchMethod(tree);
-  ne.setKSearch(12);
-  ne.compute(*normals);
-  pcl::RegionGrowing<pcl::PointXYZ, pcl::Normal> rg;
+  const Eigen::Vector4f& origin = dpc->sensor_origin_;
+  std::vector<float> d2;
+  for (std::size_t i = 0; i < dpc->size(); ++i) {
+    pcl::Normal& n = (*normals)[i];
+    if (tree.nearestKSearch(static_cast<int>(i), kNeighbours, neighbours[i], d2) == 0 ||
+        !ne.computePointNormal(*dpc, neighbours[i], n.normal_x, n.normal_y, n.normal_z, n.curvature)) {
+      n.normal_x = n.normal_y = n.normal_z = n.curvature = std::numeric_limits<float>::quiet_NaN();
+      continue;
+    }
+    pcl::flipNormalTowardsViewpoint((*dpc)[i], origin[0], origin[1], origin[2], n.normal_x, n.normal_y,
+                                    n.normal_z);
+  }
+  RegionGrowingOnNeighbours rg(std::move(neighbours));
   rg.setMinClusterSize(min_ds_points);
   rg.setMaxClusterSize(static_cast<int>(ds.size()) + 1);
-  rg.setSearchMethod(tree);
-  rg.setNumberOfNeighbours(12);
+  rg.setNumberOfNeighbours(kNeighbours);
   rg.setInputCloud(dpc);
   rg.setInputNormals(normals);
   rg.setSmoothnessThreshold(static_cast<float>(opt.smoothness_deg * kPi / 180.0));
