@@ -134,53 +134,52 @@ std::vector<Candidate> find_candidates(const cv::Mat& f, double min_axis_px, dou
   const double max_area = std::min(0.5 * static_cast<double>(u8.total()), kPi * max_axis_px * max_axis_px / k2);
   std::vector<Candidate> out;
   int stats[7] = {0, 0, 0, 0, 0, 0, 0};
-  for (int pass = 0; pass < 2; ++pass) {
-    cv::Mat img = pass == 0 ? u8 : cv::Mat(255 - u8);
-    auto mser = cv::MSER::create(5, static_cast<int>(min_area), static_cast<int>(max_area), 0.25);
-    std::vector<std::vector<cv::Point>> regions;
-    std::vector<cv::Rect> boxes;
-    mser->detectRegions(img, regions, boxes);
-    for (std::size_t ri = 0; ri < regions.size(); ++ri) {
-      const auto& reg = regions[ri];
-      ++stats[4];
-      if (reg.size() < 6) continue;
-      // The region's outline (MSER pixel lists are not a boundary and may repeat pixels).
-      const cv::Rect box = boxes[ri];
-      const cv::Mat mask = region_mask(reg, box);
-      const double area = cv::countNonZero(mask);
-      std::vector<std::vector<cv::Point>> contours;
-      cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, cv::Point(box.x - 1, box.y - 1));
-      if (contours.size() != 1 || contours[0].size() < 6) continue;
-      cv::RotatedRect e = cv::fitEllipse(contours[0]);
-      // Coarse pixel centres -> full-resolution pixel centres.
-      e.center = cv::Point2f(static_cast<float>((e.center.x + 0.5) * k - 0.5), static_cast<float>((e.center.y + 0.5) * k - 0.5));
-      e.size = cv::Size2f(e.size.width * static_cast<float>(k), e.size.height * static_cast<float>(k));
-      const double a = 0.5 * std::max(e.size.width, e.size.height);
-      const double b = 0.5 * std::min(e.size.width, e.size.height);
-      if (!(b > k) || b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
-      ++stats[5];
-      const double fill = area * k2 / (kPi * a * b);
-      if (fill < 0.9 || fill > 1.1) continue;
-      ++stats[6];
-      if (e.center.x - a < 1 || e.center.y - a < 1 || e.center.x + a > f.cols - 2 ||
-          e.center.y + a > f.rows - 2) {
-        continue;
-      }
-      Candidate c;
-      c.ellipse = e;
-      double spread = 0.0, in_spread = 0.0;
-      ++stats[0];
-      if (!levels(f, e, &c.inside, &c.outside, &spread, &in_spread)) continue;
-      const double contrast = std::abs(c.outside - c.inside);
-      ++stats[1];
-      if (contrast < o.min_contrast) continue;
-      ++stats[2];
-      // A hole: homogeneous inside, enclosed by a homogeneous board.
-      if (spread > 0.35 * contrast || in_spread > 0.35 * contrast) continue;
-      ++stats[3];
-      c.score = contrast / (spread + in_spread + 0.02);
-      out.push_back(c);
+  // One call finds the dark regions and the bright ones: OpenCV's MSER on an 8-bit image
+  // runs both passes itself (on the inverted image it returns the same regions again).
+  auto mser = cv::MSER::create(5, static_cast<int>(min_area), static_cast<int>(max_area), 0.25);
+  std::vector<std::vector<cv::Point>> regions;
+  std::vector<cv::Rect> boxes;
+  mser->detectRegions(u8, regions, boxes);
+  for (std::size_t ri = 0; ri < regions.size(); ++ri) {
+    const auto& reg = regions[ri];
+    ++stats[4];
+    if (reg.size() < 6) continue;
+    // The region's outline (MSER pixel lists are not a boundary and may repeat pixels).
+    const cv::Rect box = boxes[ri];
+    const cv::Mat mask = region_mask(reg, box);
+    const double area = cv::countNonZero(mask);
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE, cv::Point(box.x - 1, box.y - 1));
+    if (contours.size() != 1 || contours[0].size() < 6) continue;
+    cv::RotatedRect e = cv::fitEllipse(contours[0]);
+    // Coarse pixel centres -> full-resolution pixel centres.
+    e.center = cv::Point2f(static_cast<float>((e.center.x + 0.5) * k - 0.5), static_cast<float>((e.center.y + 0.5) * k - 0.5));
+    e.size = cv::Size2f(e.size.width * static_cast<float>(k), e.size.height * static_cast<float>(k));
+    const double a = 0.5 * std::max(e.size.width, e.size.height);
+    const double b = 0.5 * std::min(e.size.width, e.size.height);
+    if (!(b > k) || b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
+    ++stats[5];
+    const double fill = area * k2 / (kPi * a * b);
+    if (fill < 0.9 || fill > 1.1) continue;
+    ++stats[6];
+    if (e.center.x - a < 1 || e.center.y - a < 1 || e.center.x + a > f.cols - 2 ||
+        e.center.y + a > f.rows - 2) {
+      continue;
     }
+    Candidate c;
+    c.ellipse = e;
+    double spread = 0.0, in_spread = 0.0;
+    ++stats[0];
+    if (!levels(f, e, &c.inside, &c.outside, &spread, &in_spread)) continue;
+    const double contrast = std::abs(c.outside - c.inside);
+    ++stats[1];
+    if (contrast < o.min_contrast) continue;
+    ++stats[2];
+    // A hole: homogeneous inside, enclosed by a homogeneous board.
+    if (spread > 0.35 * contrast || in_spread > 0.35 * contrast) continue;
+    ++stats[3];
+    c.score = contrast / (spread + in_spread + 0.02);
+    out.push_back(c);
   }
   core::log_debug("calib_targets: MSER regions ", stats[4], ", size ok ", stats[5], ", elliptical ",
                   stats[6], ", inside image ", stats[0], ", levels ", stats[1], ", contrast ", stats[2],
@@ -305,11 +304,17 @@ cv::Mat normalise_image(const cv::Mat& image, double low_percentile, double high
   for (int y = 0; y < f.rows; y += 2) {
     for (int x = 0; x < f.cols; x += 2) v.push_back(f.at<float>(y, x));
   }
-  std::sort(v.begin(), v.end());
-  const auto at = [&](double p) {
-    return v[std::min(v.size() - 1, static_cast<std::size_t>(p / 100.0 * static_cast<double>(v.size())))];
+  // The two order statistics by selection, not a sort of the whole sample: the same values
+  // in linear time (the higher rank is selected among the values above the lower one).
+  const auto rank = [&](double p) {
+    return std::min(v.size() - 1, static_cast<std::size_t>(p / 100.0 * static_cast<double>(v.size())));
   };
-  const float lo = at(low_percentile), hi = at(high_percentile);
+  const std::size_t lo_rank = rank(low_percentile), hi_rank = rank(high_percentile);
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(lo_rank), v.end());
+  const float lo = v[lo_rank];
+  std::nth_element(v.begin() + static_cast<std::ptrdiff_t>(lo_rank), v.begin() + static_cast<std::ptrdiff_t>(hi_rank),
+                   v.end());
+  const float hi = v[hi_rank];
   const float scale = hi > lo ? 1.0f / (hi - lo) : 1.0f;
   f = (f - lo) * scale;
   cv::min(f, 1.0, f);
@@ -713,64 +718,62 @@ std::vector<Candidate> find_board_hole_candidates(const cv::Mat& f, double min_a
   const double min_area = std::max(100.0, 4.0 * kPi * min_axis_px * min_axis_px / k2);
   const double max_area = 0.8 * static_cast<double>(u8.total());
   std::vector<Candidate> out;
-  for (int pass = 0; pass < 2; ++pass) {
-    const cv::Mat img = pass == 0 ? cv::Mat(255 - u8) : u8;  // bright boards first
-    auto mser = cv::MSER::create(5, static_cast<int>(min_area), static_cast<int>(max_area), 0.25);
-    std::vector<std::vector<cv::Point>> regions;
-    std::vector<cv::Rect> boxes;
-    mser->detectRegions(img, regions, boxes);
-    for (std::size_t ri = 0; ri < regions.size(); ++ri) {
-      const cv::Rect box = boxes[ri];
-      const cv::Mat mask = region_mask(regions[ri], box);
-      std::vector<std::vector<cv::Point>> contours;
-      std::vector<cv::Vec4i> hierarchy;
-      cv::findContours(mask, contours, hierarchy, cv::RETR_CCOMP, cv::CHAIN_APPROX_NONE,
-                       cv::Point(box.x - 1, box.y - 1));
-      for (std::size_t ci = 0; ci < contours.size(); ++ci) {
-        if (hierarchy[ci][3] < 0 || contours[ci].size() < 12) continue;  // inner outlines only
-        // Bright parts of the background touching the edge join the board and bite into
-        // the hole's outline: its convex hull restores the outline around them.
-        std::vector<cv::Point> hull;
-        cv::convexHull(contours[ci], hull);
-        if (hull.size() < 6) continue;
-        const cv::RotatedRect ec = cv::fitEllipse(hull);
-        const double ac = 0.5 * std::max(ec.size.width, ec.size.height);
-        const double bc = 0.5 * std::min(ec.size.width, ec.size.height);
-        if (!(bc > 3.0)) continue;
-        // An ellipse, not a marker's square: every hull vertex within 12 % (and a pixel)
-        // of the fitted ellipse (a square's corners lie about 20 % outside it).
-        const double ang = ec.angle * kPi / 180.0;
-        bool elliptical = true;
-        for (const cv::Point& q : hull) {
-          const double dx = q.x - ec.center.x, dy = q.y - ec.center.y;
-          const double u = dx * std::cos(ang) + dy * std::sin(ang), v = -dx * std::sin(ang) + dy * std::cos(ang);
-          const double rho = std::sqrt(u * u / std::pow(0.5 * ec.size.width, 2) + v * v / std::pow(0.5 * ec.size.height, 2));
-          if (std::abs(rho - 1.0) > 0.12 + 1.0 / bc) {
-            elliptical = false;
-            break;
-          }
+  // Bright boards and dark ones in one call (see find_candidates).
+  auto mser = cv::MSER::create(5, static_cast<int>(min_area), static_cast<int>(max_area), 0.25);
+  std::vector<std::vector<cv::Point>> regions;
+  std::vector<cv::Rect> boxes;
+  mser->detectRegions(u8, regions, boxes);
+  for (std::size_t ri = 0; ri < regions.size(); ++ri) {
+    const cv::Rect box = boxes[ri];
+    const cv::Mat mask = region_mask(regions[ri], box);
+    std::vector<std::vector<cv::Point>> contours;
+    std::vector<cv::Vec4i> hierarchy;
+    cv::findContours(mask, contours, hierarchy, cv::RETR_CCOMP, cv::CHAIN_APPROX_NONE,
+                     cv::Point(box.x - 1, box.y - 1));
+    for (std::size_t ci = 0; ci < contours.size(); ++ci) {
+      if (hierarchy[ci][3] < 0 || contours[ci].size() < 12) continue;  // inner outlines only
+      // Bright parts of the background touching the edge join the board and bite into
+      // the hole's outline: its convex hull restores the outline around them.
+      std::vector<cv::Point> hull;
+      cv::convexHull(contours[ci], hull);
+      if (hull.size() < 6) continue;
+      const cv::RotatedRect ec = cv::fitEllipse(hull);
+      const double ac = 0.5 * std::max(ec.size.width, ec.size.height);
+      const double bc = 0.5 * std::min(ec.size.width, ec.size.height);
+      if (!(bc > 3.0)) continue;
+      // An ellipse, not a marker's square: every hull vertex within 12 % (and a pixel)
+      // of the fitted ellipse (a square's corners lie about 20 % outside it).
+      const double ang = ec.angle * kPi / 180.0;
+      bool elliptical = true;
+      for (const cv::Point& q : hull) {
+        const double dx = q.x - ec.center.x, dy = q.y - ec.center.y;
+        const double u = dx * std::cos(ang) + dy * std::sin(ang), v = -dx * std::sin(ang) + dy * std::cos(ang);
+        const double rho = std::sqrt(u * u / std::pow(0.5 * ec.size.width, 2) + v * v / std::pow(0.5 * ec.size.height, 2));
+        if (std::abs(rho - 1.0) > 0.12 + 1.0 / bc) {
+          elliptical = false;
+          break;
         }
-        if (!elliptical) continue;
-        cv::RotatedRect e = ec;
-        e.center = cv::Point2f(static_cast<float>((ec.center.x + 0.5) * k - 0.5), static_cast<float>((ec.center.y + 0.5) * k - 0.5));
-        e.size = cv::Size2f(ec.size.width * static_cast<float>(k), ec.size.height * static_cast<float>(k));
-        const double a = ac * k, b = bc * k;
-        if (b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
-        if (e.center.x - 1.8 * a < 1 || e.center.y - 1.8 * a < 1 || e.center.x + 1.8 * a > f.cols - 2 ||
-            e.center.y + 1.8 * a > f.rows - 2) {
-          continue;
-        }
-        Candidate c;
-        c.ellipse = e;
-        c.board_side = true;
-        double spread = 0.0;
-        if (!levels(f, e, &c.inside, &c.outside, &spread)) continue;
-        const double contrast = std::abs(c.outside - c.inside);
-        // The board around the hole is homogeneous; the inside may be anything but the board.
-        if (contrast < o.min_contrast || spread > 0.35 * contrast) continue;
-        c.score = contrast / (spread + 0.02);
-        out.push_back(c);
       }
+      if (!elliptical) continue;
+      cv::RotatedRect e = ec;
+      e.center = cv::Point2f(static_cast<float>((ec.center.x + 0.5) * k - 0.5), static_cast<float>((ec.center.y + 0.5) * k - 0.5));
+      e.size = cv::Size2f(ec.size.width * static_cast<float>(k), ec.size.height * static_cast<float>(k));
+      const double a = ac * k, b = bc * k;
+      if (b / a < o.min_axis_ratio || a > max_axis_px || a < min_axis_px) continue;
+      if (e.center.x - 1.8 * a < 1 || e.center.y - 1.8 * a < 1 || e.center.x + 1.8 * a > f.cols - 2 ||
+          e.center.y + 1.8 * a > f.rows - 2) {
+        continue;
+      }
+      Candidate c;
+      c.ellipse = e;
+      c.board_side = true;
+      double spread = 0.0;
+      if (!levels(f, e, &c.inside, &c.outside, &spread)) continue;
+      const double contrast = std::abs(c.outside - c.inside);
+      // The board around the hole is homogeneous; the inside may be anything but the board.
+      if (contrast < o.min_contrast || spread > 0.35 * contrast) continue;
+      c.score = contrast / (spread + 0.02);
+      out.push_back(c);
     }
   }
   // Each outline is a start: the board's edge around it (board_side_edges) fits the hole's
