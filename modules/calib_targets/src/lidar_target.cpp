@@ -1071,6 +1071,8 @@ std::vector<std::vector<int>> planar_segments(const std::vector<Vec3>& ds,
   const int min_ds_points = std::max(10, opt.min_board_points / 4);
   constexpr int kNeighbours = 12;
   std::vector<std::vector<int>> segments;
+  // No segment could reach the minimum size (and PCL complains about a tree over nothing).
+  if (ds.size() < static_cast<std::size_t>(min_ds_points)) return segments;
   std::vector<int> every(ds.size());
   std::iota(every.begin(), every.end(), 0);
   auto dpc = to_pcl(ds, every);
