@@ -1160,11 +1160,11 @@ BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSp
   const std::vector<std::vector<int>> segments = planar_segments(ds, opt);
   BestBoard best;
   best.segments = segments.size();
-  const auto try_segment = [&](const std::vector<int>& seg) {
+  for (const auto& seg : segments) {
     std::vector<int> full;
-    if (!points_near_segment(pts, ds, seg, target, opt, board_half_diag, &full)) return;
+    if (!points_near_segment(pts, ds, seg, target, opt, board_half_diag, &full)) continue;
     std::vector<int> c;
-    if (!sac_plane(pts, full, opt.refit_distance_m, &c, nullptr)) return;
+    if (!sac_plane(pts, full, opt.refit_distance_m, &c, nullptr)) continue;
     const BoardResult b = holes_on_board(pts, c, in.rings, has_ring, target, opt);
     if (b.ok) {
       core::log_debug("calib_targets: board with ", b.matched, " matched holes, score ", b.score);
@@ -1173,14 +1173,13 @@ BestBoard best_board(const RangedPoints& in, bool has_ring, const core::TargetSp
         best.result = b;
         best.board = c;
       }
-      return;
+      continue;
     }
     best.last_reason = b.reason;
     if (b.shadow) best.shadow = b.reason;
     core::log_debug("calib_targets: segment of ", c.size(), " points at ",
                     pts[static_cast<std::size_t>(c[0])].transpose(), ": ", b.reason);
-  };
-  for (const auto& seg : segments) try_segment(seg);
+  }
   return best;
 }
 
