@@ -132,7 +132,9 @@ void ViewEdgeCost::accumulate(const double* x, NormalEquations* ne, PointFit* fi
   double r2 = 0.0;
   // The image covers [-0.5, size - 0.5) (core::PinholeCamera::in_image).
   const double u_end = cam_->width - 0.5, v_end = cam_->height - 0.5;
-  for_each_point(x, ne != nullptr, [&](size_t i, const PointEval& e) {
+  // Inlined, so that each point's PointEval stays in registers instead of passing through
+  // memory to a call per point.
+  for_each_point(x, ne != nullptr, [&](size_t i, const PointEval& e) __attribute__((always_inline)) {
     const bool finite = e.in_front && std::isfinite(e.uv[0]) && std::isfinite(e.uv[1]);
     fit->distances_px[i] = finite ? std::sqrt(e.f[0] * e.f[0] + e.f[1] * e.f[1])
                                   : std::numeric_limits<double>::infinity();

@@ -44,7 +44,7 @@ struct SmoothView {
   SmoothView& operator=(const SmoothView&) = delete;
   /// Offset f (edge -> pixel) at (u, v) and, when J is given, df/d(u, v) (row-major 2x2):
   /// bicubic (value and exact gradient) in the band, the nearest-edge form outside it.
-  inline void evaluate(double u, double v, double f[2], double J[4]) const;
+  inline void evaluate(double u, double v, double f[2], double J[4]) const __attribute__((always_inline));
 
   EdgeDistanceField field;
   EdgeDistanceField::Grid grid;  // the interpolator keeps a reference to it

@@ -13,21 +13,6 @@ namespace rgbdt::extrinsics {
 
 namespace {
 
-// Catmull-Rom weights of the four samples at -1, 0, 1, 2 for 0 <= x < 1, and their
-// derivatives: the cubic Hermite spline of ceres::CubicHermiteSpline (tangents
-// (p[k+1] - p[k-1]) / 2) written as weights so that both axes share them.
-inline void catmull_rom_weights(double x, double w[4], double dw[4]) {
-  const double x2 = x * x, x3 = x2 * x;
-  w[0] = 0.5 * (-x3 + 2.0 * x2 - x);
-  w[1] = 0.5 * (3.0 * x3 - 5.0 * x2 + 2.0);
-  w[2] = 0.5 * (-3.0 * x3 + 4.0 * x2 + x);
-  w[3] = 0.5 * (x3 - x2);
-  dw[0] = 0.5 * (-3.0 * x2 + 4.0 * x - 1.0);
-  dw[1] = 0.5 * (9.0 * x2 - 10.0 * x);
-  dw[2] = 0.5 * (-9.0 * x2 + 8.0 * x + 1.0);
-  dw[3] = 0.5 * (3.0 * x2 - 2.0 * x);
-}
-
 // One tile row of the nearest-point claim: node k (0..7) lies at du = u0 + k, dv^2 = dv2
 // from point i, which takes the nodes it is strictly nearer to. SSE2 (every x86-64) does
 // the 8 nodes in two steps; GCC does not vectorise the scalar loop's selects.
@@ -460,65 +445,6 @@ void EdgeDistanceField::nearest_edge(const Eigen::Vector2d& px, Eigen::Vector2d*
   *normal = normals_[best];
   const Eigen::Vector2d d = px - *point;
   if (std::abs(d.x() * -normal->y() + d.y() * normal->x()) > tangent_reach_px_) normal->setZero();
-}
-
-void EdgeDistanceField::interpolate(double u, double v, double f[2], double df_du[2],
-                                    double df_dv[2]) const {
-  // floor() without the libm call (no SSE4.1 in the baseline ISA); u, v are in the band.
-  const auto floor_of = [](double a) {
-    const int i = static_cast<int>(a);
-    return static_cast<double>(a < i ? i - 1 : i);
-  };
-  const double u0 = floor_of(u), v0 = floor_of(v);
-  const int c = static_cast<int>(u0) - col_begin_, r = static_cast<int>(v0) - row_begin_;
-  double wu[4], dwu[4], wv[4], dwv[4];
-  catmull_rom_weights(u - u0, wu, dwu);
-  catmull_rom_weights(v - v0, wv, dwv);
-  // The 16 nodes, interleaved (du, dv). A stencil row lies in one tile when its four
-  // columns do (5 of 8 positions): one tile lookup and 8 contiguous floats.
-  float node[4][8];
-  const bool inside = r >= 1 && c >= 1 && r + 2 < rows_ && c + 2 < cols_;
-  for (int i = 0; i < 4; ++i) {
-    const int rr = r - 1 + i;
-    if (inside && ((c - 1) >> kTileShift) == ((c + 2) >> kTileShift)) {
-      const long idx = node_index(rr, c - 1);
-      if (idx >= 0) {
-        std::copy_n(data_.data() + 2 * idx, 8, node[i]);
-        continue;
-      }
-    }
-    for (int j = 0; j < 4; ++j) {
-      if (inside) {
-        const long idx = node_index(rr, c - 1 + j);
-        node[i][2 * j] = idx >= 0 ? data_[2 * idx] : 0.0f;
-        node[i][2 * j + 1] = idx >= 0 ? data_[2 * idx + 1] : 0.0f;
-        continue;
-      }
-      double value[2];
-      node_value(static_cast<int>(v0) - 1 + i, static_cast<int>(u0) - 1 + j, value);
-      node[i][2 * j] = static_cast<float>(value[0]);
-      node[i][2 * j + 1] = static_cast<float>(value[1]);
-    }
-  }
-  // Both components at once (packed doubles).
-  Eigen::Array2d value = Eigen::Array2d::Zero(), d_u = value, d_v = value;
-  for (int i = 0; i < 4; ++i) {
-    // Along the row first (value and d/du), then across the rows, as the ceres interpolator.
-    Eigen::Array2d row_value = Eigen::Array2d::Zero(), row_du = row_value;
-    for (int j = 0; j < 4; ++j) {
-      const Eigen::Array2d p(node[i][2 * j], node[i][2 * j + 1]);
-      row_value += wu[j] * p;
-      row_du += dwu[j] * p;
-    }
-    value += wv[i] * row_value;
-    d_u += wv[i] * row_du;
-    d_v += dwv[i] * row_value;
-  }
-  for (int k = 0; k < 2; ++k) {
-    f[k] = value[k];
-    if (df_du != nullptr) df_du[k] = d_u[k];
-    if (df_dv != nullptr) df_dv[k] = d_v[k];
-  }
 }
 
 Eigen::Vector2d EdgeDistanceField::offset(const Eigen::Vector2d& px) const {
