@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 #include "rgbdt/calib_targets/lidar_target.hpp"
 #include "rgbdt/core/log.hpp"
@@ -107,9 +108,17 @@ cv::Mat region_mask(const std::vector<cv::Point>& region, const cv::Rect& box) {
   return mask;
 }
 
-/// Nested MSERs of one hole: the best-scoring candidate per centre, best first.
+/// Nested MSERs of one hole: the best-scoring candidate per centre, best first. Equal scores
+/// (a support fraction is often exactly tied between nested outlines) are ordered by the
+/// ellipse, larger first, then by centre, so that the choice does not depend on the order in
+/// which OpenCV lists its regions.
 std::vector<Candidate> best_per_centre(std::vector<Candidate> out) {
-  std::sort(out.begin(), out.end(), [](const Candidate& x, const Candidate& y) { return x.score > y.score; });
+  const auto key = [](const Candidate& c) {
+    const cv::RotatedRect& e = c.ellipse;
+    return std::make_tuple(-c.score, -static_cast<double>(e.size.area()), e.center.x, e.center.y,
+                           e.size.width, e.angle);
+  };
+  std::sort(out.begin(), out.end(), [&](const Candidate& x, const Candidate& y) { return key(x) < key(y); });
   std::vector<Candidate> unique;
   for (const Candidate& c : out) {
     bool dup = false;
