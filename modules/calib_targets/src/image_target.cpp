@@ -109,9 +109,9 @@ cv::Mat region_mask(const std::vector<cv::Point>& region, const cv::Rect& box) {
 }
 
 /// Nested MSERs of one hole: the best-scoring candidate per centre, best first. Equal scores
-/// (a support fraction is often exactly tied between nested outlines) are ordered by the
-/// ellipse, larger first, then by centre, so that the choice does not depend on the order in
-/// which OpenCV lists its regions.
+/// (a support fraction, a ratio of small counts, can tie exactly between nested outlines) are
+/// ordered by the ellipse, larger first, then by centre, so that the choice does not depend on
+/// the order in which OpenCV lists its regions.
 std::vector<Candidate> best_per_centre(std::vector<Candidate> out) {
   const auto key = [](const Candidate& c) {
     const cv::RotatedRect& e = c.ellipse;

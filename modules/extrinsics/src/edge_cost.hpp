@@ -51,8 +51,9 @@ struct SmoothView {
   Interpolator interpolator;
 };
 
-// Inline: it runs once per point per pass, and a call through the shared library's PLT
-// cannot be inlined into the pass.
+// Inline, and forced so (always_inline at its declaration): it runs once per point per pass,
+// a call through the shared library's PLT cannot be inlined into the pass, and with the
+// bicubic inlined into it GCC's heuristics would keep it a call.
 inline void SmoothView::evaluate(double u, double v, double f[2], double J[4]) const {
   if (field.in_band(u, v)) {
     if (J == nullptr) {
